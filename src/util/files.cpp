@@ -1,0 +1,77 @@
+#include "hlt/util/files.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "hlt/util/error.h"
+
+namespace hlt {
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string temp_path_for(const std::string& path) {
+  return fmt::format("{}.tmp.{}", path, static_cast<long>(::getpid()));
+}
+
+void fsync_path(const std::string& path) {
+  int fd = ::open(path.c_str(), O_RDONLY);
+  if (fd < 0) return;
+  ::fsync(fd);
+  ::close(fd);
+}
+
+}  // namespace
+
+void write_atomic_with(const std::string& path, const std::function<void(const std::string&)>& writer) {
+  const std::string tmp = temp_path_for(path);
+  try {
+    writer(tmp);
+  } catch (...) {
+    std::remove(tmp.c_str());
+    throw;
+  }
+  fsync_path(tmp);
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    const std::string reason = std::strerror(errno);
+    std::remove(tmp.c_str());
+    throw Error(fmt::format("cannot move {} into place: {}", path, reason));
+  }
+}
+
+void write_file_atomic(const std::string& path, const std::string& content) {
+  write_atomic_with(path, [&](const std::string& tmp) {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    check(out.good(), "cannot write {}: {}", tmp, std::strerror(errno));
+    out << content;
+    out.flush();
+    check(out.good(), "write to {} failed", tmp);
+  });
+}
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  check(in.good(), "cannot read {}: {}", path, fs::exists(path) ? "permission denied" : "no such file");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+bool file_exists(const std::string& path) { return fs::exists(path); }
+
+void ensure_writable_directory(const std::string& path) {
+  std::error_code ec;
+  fs::create_directories(path, ec);
+  check(!ec, "cannot create directory {}: {}", path, ec.message());
+  check(fs::is_directory(path), "{} exists and is not a directory", path);
+  check(::access(path.c_str(), W_OK) == 0, "directory {} is not writable", path);
+}
+
+}  // namespace hlt
