@@ -1,0 +1,52 @@
+// hlt::ReplayBuffer: a fixed-capacity ring buffer of transitions (s, a, r, s', a', done) held in contiguous
+// float tensors, sampled uniformly from its own seeded generator. a' is the action taken at s' (the reward
+// model's TD target needs it); done marks a true terminal state, never a time-limit cut.
+#pragma once
+
+#include <cstdint>
+#include <random>
+#include <string>
+
+#include <ATen/core/Tensor.h>
+
+namespace torch::serialize {
+class OutputArchive;
+class InputArchive;
+}  // namespace torch::serialize
+
+namespace hlt {
+
+struct Batch {
+  at::Tensor states, actions, rewards, next_states, next_actions, dones;  // [B, n], [B, m], [B, 1], ...
+};
+
+class ReplayBuffer {
+ public:
+  ReplayBuffer(int64_t capacity, int64_t state_dim, int64_t action_dim, uint64_t seed);
+
+  // Appends one transition (overwriting the oldest when full). Pointers hold state_dim / action_dim values.
+  void add(const double* state, const double* action, double reward, const double* next_state,
+           const double* next_action, bool done);
+  // `batch_size` transitions drawn uniformly with replacement.
+  Batch sample(int64_t batch_size);
+  // Rows [0, size()) in insertion order (oldest first): for behaviour cloning and tests.
+  Batch all() const;
+
+  int64_t size() const { return size_; }
+  int64_t capacity() const { return capacity_; }
+  int64_t state_dim() const { return state_dim_; }
+  int64_t action_dim() const { return action_dim_; }
+
+  // Contents, write position and generator state; load checks the sizes match.
+  void save(torch::serialize::OutputArchive& archive) const;
+  void load(torch::serialize::InputArchive& archive);
+
+ private:
+  int64_t capacity_, state_dim_, action_dim_;
+  int64_t size_ = 0, next_ = 0;
+  // One [capacity, width] float tensor per field: width n, m, 1, n, m, 1.
+  at::Tensor states_, actions_, rewards_, next_states_, next_actions_, dones_;
+  std::mt19937_64 rng_;
+};
+
+}  // namespace hlt

@@ -1,0 +1,43 @@
+// hlt::DynamicsModel: the learned one-step model s' = s + W2 act(W1 [s, a] + b1) + b2 (paper appendix,
+// "Models"), with a learned state-independent log-std used only by its Gaussian negative log-likelihood.
+#pragma once
+
+#include <cstdint>
+
+#include <torch/nn/module.h>
+#include <torch/nn/modules/linear.h>
+
+#include "hlt/nn/activation.h"
+
+namespace hlt {
+
+struct DynamicsModelOptions {
+  int64_t state_dim = 0;
+  int64_t action_dim = 0;
+  int64_t hidden = 200;
+  Activation activation = Activation::kSin;
+  double log_std_min = -10.0;
+  double log_std_max = 2.0;
+};
+
+class DynamicsModelImpl : public torch::nn::Module {
+ public:
+  explicit DynamicsModelImpl(const DynamicsModelOptions& options);
+
+  // Predicted next state, [B, n], from states [B, n] and actions [B, m].
+  torch::Tensor forward(const torch::Tensor& state, const torch::Tensor& action);
+  // The clamped log-std, [1, n].
+  torch::Tensor log_std() const;
+  // -mean over batch and state dimensions of log N(next_state; forward(state, action), exp(log_std)^2).
+  torch::Tensor loss(const torch::Tensor& state, const torch::Tensor& action, const torch::Tensor& next_state);
+
+  const DynamicsModelOptions& options() const { return options_; }
+  torch::nn::Linear fc1{nullptr}, fc2{nullptr};
+  torch::Tensor log_std_param;
+
+ private:
+  DynamicsModelOptions options_;
+};
+TORCH_MODULE(DynamicsModel);
+
+}  // namespace hlt

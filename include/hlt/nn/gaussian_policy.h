@@ -1,0 +1,61 @@
+// hlt::GaussianPolicy: pi(a|s) = tanh(N(mu(s), diag(std(s))^2)), the paper's policy. The mean head is an MLP
+// with sin (or ReLU) hidden layers, the log-std head an MLP with ReLU hidden layers clamped to [-5, 2]; the
+// last layers start at U(-3e-3, 3e-3). Log-probabilities include the tanh change of variables,
+// log(1 - a^2 + 1e-6) per action dimension.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <torch/nn/module.h>
+#include <torch/nn/modules/container/modulelist.h>
+#include <torch/nn/modules/linear.h>
+
+#include "hlt/nn/activation.h"
+
+namespace hlt {
+
+struct GaussianPolicyOptions {
+  int64_t state_dim = 0;
+  int64_t action_dim = 0;
+  std::vector<int64_t> hidden = {128};
+  Activation mean_activation = Activation::kSin;
+  double log_std_min = -5.0;
+  double log_std_max = 2.0;
+  double init_scale = 3e-3;
+};
+
+struct PolicySample {
+  torch::Tensor action;    // tanh(u), [B, m]
+  torch::Tensor log_prob;  // [B, 1]
+  torch::Tensor pre_tanh;  // u, [B, m]
+};
+
+class GaussianPolicyImpl : public torch::nn::Module {
+ public:
+  explicit GaussianPolicyImpl(const GaussianPolicyOptions& options);
+
+  // The Gaussian's mean and clamped log-std before the tanh, each [B, m].
+  std::pair<torch::Tensor, torch::Tensor> forward(const torch::Tensor& state);
+  // tanh(mu(s)): the deterministic action.
+  torch::Tensor mean_action(const torch::Tensor& state);
+  // A reparameterised sample (gradients flow to the parameters) and its log-probability.
+  PolicySample rsample(const torch::Tensor& state);
+  // A sample without gradients.
+  PolicySample sample(const torch::Tensor& state);
+  // log pi(action | state) for given actions in (-1, 1) (clamped to +-(1 - 1e-6) before atanh), [B, 1].
+  torch::Tensor log_prob(const torch::Tensor& state, const torch::Tensor& action);
+
+  // Log-density of u under N(mean, exp(log_std)^2) plus the tanh correction for a = tanh(u); [B, 1].
+  static torch::Tensor squashed_log_prob(const torch::Tensor& u, const torch::Tensor& action, const torch::Tensor& mean,
+                                         const torch::Tensor& log_std);
+
+  const GaussianPolicyOptions& options() const { return options_; }
+  torch::nn::ModuleList mean_layers{nullptr}, log_std_layers{nullptr};
+
+ private:
+  GaussianPolicyOptions options_;
+};
+TORCH_MODULE(GaussianPolicy);
+
+}  // namespace hlt

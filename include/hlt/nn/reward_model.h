@@ -1,0 +1,38 @@
+// hlt::RewardModel: the learned reward r(s, a) = Linear(n+m, 200) ReLU Linear(200, 200) ReLU Linear(200, 1),
+// trained by a TD-style loss so that it also carries value information for rewards that depend on more
+// than the current state (paper appendix, "Models").
+#pragma once
+
+#include <cstdint>
+
+#include <torch/nn/module.h>
+#include <torch/nn/modules/linear.h>
+
+namespace hlt {
+
+struct RewardModelOptions {
+  int64_t state_dim = 0;
+  int64_t action_dim = 0;
+  int64_t hidden = 200;
+};
+
+class RewardModelImpl : public torch::nn::Module {
+ public:
+  explicit RewardModelImpl(const RewardModelOptions& options);
+
+  // Predicted reward, [B, 1].
+  torch::Tensor forward(const torch::Tensor& state, const torch::Tensor& action);
+  // mean((r + gamma (1 - done) r(s', a')).detach() - r(s, a))^2; reward and done are [B, 1].
+  torch::Tensor td_loss(const torch::Tensor& state, const torch::Tensor& action, const torch::Tensor& reward,
+                        const torch::Tensor& next_state, const torch::Tensor& next_action, const torch::Tensor& done,
+                        double gamma);
+
+  const RewardModelOptions& options() const { return options_; }
+  torch::nn::Linear fc1{nullptr}, fc2{nullptr}, fc3{nullptr};
+
+ private:
+  RewardModelOptions options_;
+};
+TORCH_MODULE(RewardModel);
+
+}  // namespace hlt

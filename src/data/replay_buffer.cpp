@@ -1,0 +1,107 @@
+#include "hlt/data/replay_buffer.h"
+
+#include <sstream>
+
+#include <torch/torch.h>
+
+#include "hlt/util/error.h"
+
+namespace hlt {
+namespace {
+
+void copy_row(at::Tensor& t, int64_t row, const double* src) {
+  float* dst = t.data_ptr<float>() + row * t.size(1);
+  for (int64_t j = 0; j < t.size(1); ++j) dst[j] = static_cast<float>(src[j]);
+}
+
+}  // namespace
+
+ReplayBuffer::ReplayBuffer(int64_t capacity, int64_t state_dim, int64_t action_dim, uint64_t seed)
+    : capacity_(capacity), state_dim_(state_dim), action_dim_(action_dim), rng_(seed) {
+  check(capacity > 0 && state_dim > 0 && action_dim > 0, "ReplayBuffer needs positive sizes");
+  const auto opts = torch::TensorOptions().dtype(torch::kFloat32);
+  states_ = torch::zeros({capacity, state_dim}, opts);
+  actions_ = torch::zeros({capacity, action_dim}, opts);
+  rewards_ = torch::zeros({capacity, 1}, opts);
+  next_states_ = torch::zeros({capacity, state_dim}, opts);
+  next_actions_ = torch::zeros({capacity, action_dim}, opts);
+  dones_ = torch::zeros({capacity, 1}, opts);
+}
+
+void ReplayBuffer::add(const double* state, const double* action, double reward, const double* next_state,
+                       const double* next_action, bool done) {
+  copy_row(states_, next_, state);
+  copy_row(actions_, next_, action);
+  copy_row(next_states_, next_, next_state);
+  copy_row(next_actions_, next_, next_action);
+  rewards_.data_ptr<float>()[next_] = static_cast<float>(reward);
+  dones_.data_ptr<float>()[next_] = done ? 1.0f : 0.0f;
+  next_ = (next_ + 1) % capacity_;
+  size_ = std::min(size_ + 1, capacity_);
+}
+
+Batch ReplayBuffer::sample(int64_t batch_size) {
+  check(size_ > 0, "cannot sample from an empty replay buffer");
+  check(batch_size > 0, "batch size must be positive, got {}", batch_size);
+  torch::Tensor idx = torch::empty({batch_size}, torch::kInt64);
+  int64_t* p = idx.data_ptr<int64_t>();
+  std::uniform_int_distribution<int64_t> pick(0, size_ - 1);
+  for (int64_t i = 0; i < batch_size; ++i) p[i] = pick(rng_);
+  return {states_.index_select(0, idx),      actions_.index_select(0, idx),      rewards_.index_select(0, idx),
+          next_states_.index_select(0, idx), next_actions_.index_select(0, idx), dones_.index_select(0, idx)};
+}
+
+Batch ReplayBuffer::all() const {
+  torch::Tensor idx = (torch::arange(size_, torch::kInt64) + (size_ == capacity_ ? next_ : 0)) % capacity_;
+  return {states_.index_select(0, idx),      actions_.index_select(0, idx),      rewards_.index_select(0, idx),
+          next_states_.index_select(0, idx), next_actions_.index_select(0, idx), dones_.index_select(0, idx)};
+}
+
+void ReplayBuffer::save(torch::serialize::OutputArchive& archive) const {
+  // Only the filled rows are written, so a large, mostly empty buffer costs little.
+  const int64_t rows = size_;
+  archive.write("states", states_.narrow(0, 0, rows).clone());
+  archive.write("actions", actions_.narrow(0, 0, rows).clone());
+  archive.write("rewards", rewards_.narrow(0, 0, rows).clone());
+  archive.write("next_states", next_states_.narrow(0, 0, rows).clone());
+  archive.write("next_actions", next_actions_.narrow(0, 0, rows).clone());
+  archive.write("dones", dones_.narrow(0, 0, rows).clone());
+  archive.write("sizes", torch::tensor({capacity_, state_dim_, action_dim_, size_, next_}, torch::kInt64));
+  std::ostringstream rng;
+  rng << rng_;
+  archive.write("rng", c10::IValue(rng.str()));
+}
+
+void ReplayBuffer::load(torch::serialize::InputArchive& archive) {
+  torch::Tensor sizes;
+  archive.read("sizes", sizes);
+  check(sizes.numel() == 5, "replay buffer record is malformed");
+  const int64_t* s = sizes.data_ptr<int64_t>();
+  check(s[0] == capacity_ && s[1] == state_dim_ && s[2] == action_dim_,
+        "replay buffer in checkpoint has capacity {} and dims ({}, {}); this run expects {} and ({}, {})", s[0], s[1],
+        s[2], capacity_, state_dim_, action_dim_);
+  const int64_t rows = s[3];
+  check(rows >= 0 && rows <= capacity_ && s[4] >= 0 && s[4] < capacity_, "replay buffer record is malformed");
+  auto read_into = [&](const char* key, torch::Tensor& dst) {
+    torch::Tensor t;
+    archive.read(key, t);
+    check(t.dim() == 2 && t.size(0) == rows && t.size(1) == dst.size(1), "replay buffer field '{}' has a wrong shape",
+          key);
+    dst.narrow(0, 0, rows).copy_(t);
+  };
+  read_into("states", states_);
+  read_into("actions", actions_);
+  read_into("rewards", rewards_);
+  read_into("next_states", next_states_);
+  read_into("next_actions", next_actions_);
+  read_into("dones", dones_);
+  size_ = rows;
+  next_ = s[4];
+  c10::IValue rng;
+  archive.read("rng", rng);
+  std::istringstream in(rng.toStringRef());
+  in >> rng_;
+  check(!in.fail(), "replay buffer generator state is corrupt");
+}
+
+}  // namespace hlt

@@ -1,0 +1,87 @@
+#include "hlt/nn/gaussian_policy.h"
+
+#include <cmath>
+
+#include <torch/torch.h>
+
+#include "hlt/util/error.h"
+
+namespace hlt {
+namespace {
+
+// Hidden layers then an output layer; only the output layer gets the small uniform initialisation.
+torch::nn::ModuleList make_mlp(int64_t in, const std::vector<int64_t>& hidden, int64_t out, double init_scale) {
+  torch::nn::ModuleList layers;
+  int64_t width = in;
+  for (int64_t h : hidden) {
+    layers->push_back(torch::nn::Linear(width, h));
+    width = h;
+  }
+  torch::nn::Linear last(width, out);
+  torch::NoGradGuard no_grad;
+  last->weight.uniform_(-init_scale, init_scale);
+  last->bias.uniform_(-init_scale, init_scale);
+  layers->push_back(last);
+  return layers;
+}
+
+torch::Tensor run_mlp(torch::nn::ModuleList layers, torch::Tensor x, Activation hidden_activation) {
+  const size_t n = layers->size();
+  for (size_t i = 0; i < n; ++i) {
+    x = layers[i]->as<torch::nn::Linear>()->forward(x);
+    if (i + 1 < n) x = activate(x, hidden_activation);
+  }
+  return x;
+}
+
+constexpr double kTanhEps = 1e-6;
+
+}  // namespace
+
+GaussianPolicyImpl::GaussianPolicyImpl(const GaussianPolicyOptions& o) : options_(o) {
+  check(o.state_dim > 0 && o.action_dim > 0, "GaussianPolicy needs positive sizes, got n={} m={}", o.state_dim,
+        o.action_dim);
+  check(!o.hidden.empty(), "GaussianPolicy needs at least one hidden layer");
+  for (int64_t h : o.hidden) check(h > 0, "GaussianPolicy hidden sizes must be positive");
+  mean_layers = register_module("mean", make_mlp(o.state_dim, o.hidden, o.action_dim, o.init_scale));
+  log_std_layers = register_module("log_std", make_mlp(o.state_dim, o.hidden, o.action_dim, o.init_scale));
+}
+
+std::pair<torch::Tensor, torch::Tensor> GaussianPolicyImpl::forward(const torch::Tensor& state) {
+  torch::Tensor mean = run_mlp(mean_layers, state, options_.mean_activation);
+  torch::Tensor log_std =
+      run_mlp(log_std_layers, state, Activation::kRelu).clamp(options_.log_std_min, options_.log_std_max);
+  return {mean, log_std};
+}
+
+torch::Tensor GaussianPolicyImpl::mean_action(const torch::Tensor& state) {
+  return torch::tanh(run_mlp(mean_layers, state, options_.mean_activation));
+}
+
+torch::Tensor GaussianPolicyImpl::squashed_log_prob(const torch::Tensor& u, const torch::Tensor& action,
+                                                    const torch::Tensor& mean, const torch::Tensor& log_std) {
+  const torch::Tensor z = (u - mean) * torch::exp(-log_std);
+  const torch::Tensor gaussian = -0.5 * z.square() - log_std - 0.5 * std::log(2.0 * M_PI);
+  const torch::Tensor correction = torch::log(1.0 - action.square() + kTanhEps);
+  return (gaussian - correction).sum(-1, /*keepdim=*/true);
+}
+
+PolicySample GaussianPolicyImpl::rsample(const torch::Tensor& state) {
+  auto [mean, log_std] = forward(state);
+  const torch::Tensor u = mean + torch::exp(log_std) * torch::randn_like(mean);
+  const torch::Tensor a = torch::tanh(u);
+  return {a, squashed_log_prob(u, a, mean, log_std), u};
+}
+
+PolicySample GaussianPolicyImpl::sample(const torch::Tensor& state) {
+  torch::NoGradGuard no_grad;
+  return rsample(state);
+}
+
+torch::Tensor GaussianPolicyImpl::log_prob(const torch::Tensor& state, const torch::Tensor& action) {
+  auto [mean, log_std] = forward(state);
+  const torch::Tensor a = action.clamp(-1.0 + kTanhEps, 1.0 - kTanhEps);
+  return squashed_log_prob(torch::atanh(a), a, mean, log_std);
+}
+
+}  // namespace hlt
