@@ -21,13 +21,15 @@ Eigen::VectorXd Env::reset(std::optional<uint64_t> seed) {
 
 StepResult Env::step(const Eigen::VectorXd& action) {
   check(!needs_reset_, "{}: step() called before reset() or after the episode ended", name());
-  check(action.size() == action_dim(), "{}: action has {} values, expected {}", name(), action.size(), action_dim());
+  check(action.size() == action_dim(), "{}: action has {} values, expected {}", name(), action.size(),
+        action_dim());
   check(action.allFinite(), "{}: action contains NaN or Inf", name());
   StepResult r = step_impl(action);
   ++elapsed_;
   if (r.observation.size() != observation_dim() || !r.observation.allFinite() || !std::isfinite(r.reward)) {
     // A simulation that blew up ends the episode; the agent never sees the non-finite values.
-    if (r.failure.empty()) r.failure = fmt::format("{}: simulation became non-finite at step {}", name(), elapsed_);
+    if (r.failure.empty())
+      r.failure = fmt::format("{}: simulation became non-finite at step {}", name(), elapsed_);
     r.observation = last_observation_;
     r.reward = 0.0;
     r.terminated = true;
@@ -65,7 +67,9 @@ FrameSkip::FrameSkip(std::unique_ptr<Env> inner, int k) : inner_(std::move(inner
   check(k >= 1, "frame skip must be >= 1, got {}", k);
 }
 
-Eigen::VectorXd FrameSkip::reset_impl(std::mt19937_64& rng) { return inner_->reset(rng()); }
+Eigen::VectorXd FrameSkip::reset_impl(std::mt19937_64& rng) {
+  return inner_->reset(rng());
+}
 
 StepResult FrameSkip::step_impl(const Eigen::VectorXd& action) {
   StepResult total;
@@ -93,8 +97,10 @@ std::vector<double> FrameSkip::save_sim() const {
   out.push_back(s.elapsed_steps);
   out.push_back(s.needs_reset ? 1.0 : 0.0);
   out.push_back(static_cast<double>(s.last_observation.size()));
-  for (Eigen::Index i = 0; i < s.last_observation.size(); ++i) out.push_back(s.last_observation[i]);
-  for (unsigned char c : s.rng) out.push_back(c);
+  for (Eigen::Index i = 0; i < s.last_observation.size(); ++i)
+    out.push_back(s.last_observation[i]);
+  for (unsigned char c : s.rng)
+    out.push_back(c);
   return out;
 }
 
@@ -106,13 +112,16 @@ void FrameSkip::restore_sim(const std::vector<double>& v) {
     return v[i++];
   };
   const size_t n_sim = static_cast<size_t>(next());
-  for (size_t j = 0; j < n_sim; ++j) s.sim.push_back(next());
+  for (size_t j = 0; j < n_sim; ++j)
+    s.sim.push_back(next());
   s.elapsed_steps = static_cast<int>(next());
   s.needs_reset = next() != 0.0;
   const size_t n_obs = static_cast<size_t>(next());
   s.last_observation.resize(n_obs);
-  for (size_t j = 0; j < n_obs; ++j) s.last_observation[j] = next();
-  while (i < v.size()) s.rng.push_back(static_cast<char>(v[i++]));
+  for (size_t j = 0; j < n_obs; ++j)
+    s.last_observation[j] = next();
+  while (i < v.size())
+    s.rng.push_back(static_cast<char>(v[i++]));
   inner_->restore_state(s);
 }
 

@@ -34,7 +34,8 @@ std::unique_ptr<Env> make_env(const std::string& name) {
 
 std::vector<std::string> env_names() {
   std::vector<std::string> names;
-  for (const auto& kv : factories()) names.push_back(kv.first);
+  for (const auto& kv : factories())
+    names.push_back(kv.first);
   return names;
 }
 

@@ -28,8 +28,10 @@ CheckpointWriter::~CheckpointWriter() = default;
 void CheckpointWriter::add_module(const std::string& name, const torch::nn::Module& module) {
   // Flat dotted names ("mean.0.weight"), the same keys load_module looks up.
   auto& out = archive("module." + name);
-  for (const auto& item : module.named_parameters(true)) out.write(item.key(), item.value().detach());
-  for (const auto& item : module.named_buffers(true)) out.write(item.key(), item.value(), /*is_buffer=*/true);
+  for (const auto& item : module.named_parameters(true))
+    out.write(item.key(), item.value().detach());
+  for (const auto& item : module.named_buffers(true))
+    out.write(item.key(), item.value(), /*is_buffer=*/true);
 }
 
 void CheckpointWriter::add_optimizer(const std::string& name, const torch::optim::Optimizer& optimizer) {
@@ -55,7 +57,8 @@ torch::serialize::OutputArchive& CheckpointWriter::archive(const std::string& na
 }
 
 void CheckpointWriter::save(const std::string& path) {
-  for (auto& [name, nested] : impl_->nested) impl_->root.write(name, *nested);
+  for (auto& [name, nested] : impl_->nested)
+    impl_->root.write(name, *nested);
   impl_->nested.clear();
   write_atomic_with(path, [&](const std::string& tmp) {
     try {
@@ -87,7 +90,9 @@ CheckpointReader::CheckpointReader(const std::string& path) : impl_(std::make_un
 }
 CheckpointReader::~CheckpointReader() = default;
 
-const std::string& CheckpointReader::path() const { return impl_->path; }
+const std::string& CheckpointReader::path() const {
+  return impl_->path;
+}
 
 bool CheckpointReader::has(const std::string& name) const {
   for (const auto& key : impl_->root.keys()) {
@@ -114,13 +119,14 @@ void CheckpointReader::load_module(const std::string& name, torch::nn::Module& m
   auto load_named = [&](const torch::OrderedDict<std::string, torch::Tensor>& named, bool is_buffer) {
     for (const auto& item : named) {
       torch::Tensor stored;
-      check(in.try_read(item.key(), stored, is_buffer), "checkpoint {}: '{}' has no parameter '{}'", impl_->path, name,
-            item.key());
-      check(stored.sizes() == item.value().sizes(), "checkpoint {}: '{}.{}' has shape {}, the model expects {}",
-            impl_->path, name, item.key(), fmt::join(stored.sizes(), "x"), fmt::join(item.value().sizes(), "x"));
-      check(stored.dtype() == item.value().dtype(), "checkpoint {}: '{}.{}' has dtype {}, the model expects {}",
-            impl_->path, name, item.key(), std::string(stored.dtype().name()),
-            std::string(item.value().dtype().name()));
+      check(in.try_read(item.key(), stored, is_buffer), "checkpoint {}: '{}' has no parameter '{}'",
+            impl_->path, name, item.key());
+      check(stored.sizes() == item.value().sizes(),
+            "checkpoint {}: '{}.{}' has shape {}, the model expects {}", impl_->path, name, item.key(),
+            fmt::join(stored.sizes(), "x"), fmt::join(item.value().sizes(), "x"));
+      check(stored.dtype() == item.value().dtype(),
+            "checkpoint {}: '{}.{}' has dtype {}, the model expects {}", impl_->path, name, item.key(),
+            std::string(stored.dtype().name()), std::string(item.value().dtype().name()));
       item.value().copy_(stored);
     }
   };
@@ -145,14 +151,15 @@ at::Tensor CheckpointReader::tensor(const std::string& name) {
 
 int64_t CheckpointReader::get_int(const std::string& name) {
   c10::IValue v;
-  check(impl_->root.try_read("int." + name, v) && v.isInt(), "checkpoint {} has no integer '{}'", impl_->path, name);
+  check(impl_->root.try_read("int." + name, v) && v.isInt(), "checkpoint {} has no integer '{}'", impl_->path,
+        name);
   return v.toInt();
 }
 
 std::string CheckpointReader::get_string(const std::string& name) {
   c10::IValue v;
-  check(impl_->root.try_read("str." + name, v) && v.isString(), "checkpoint {} has no string '{}'", impl_->path,
-        name);
+  check(impl_->root.try_read("str." + name, v) && v.isString(), "checkpoint {} has no string '{}'",
+        impl_->path, name);
   return v.toStringRef();
 }
 

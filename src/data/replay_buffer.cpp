@@ -11,7 +11,8 @@ namespace {
 
 void copy_row(at::Tensor& t, int64_t row, const double* src) {
   float* dst = t.data_ptr<float>() + row * t.size(1);
-  for (int64_t j = 0; j < t.size(1); ++j) dst[j] = static_cast<float>(src[j]);
+  for (int64_t j = 0; j < t.size(1); ++j)
+    dst[j] = static_cast<float>(src[j]);
 }
 
 }  // namespace
@@ -46,15 +47,18 @@ Batch ReplayBuffer::sample(int64_t batch_size) {
   torch::Tensor idx = torch::empty({batch_size}, torch::kInt64);
   int64_t* p = idx.data_ptr<int64_t>();
   std::uniform_int_distribution<int64_t> pick(0, size_ - 1);
-  for (int64_t i = 0; i < batch_size; ++i) p[i] = pick(rng_);
-  return {states_.index_select(0, idx),      actions_.index_select(0, idx),      rewards_.index_select(0, idx),
-          next_states_.index_select(0, idx), next_actions_.index_select(0, idx), dones_.index_select(0, idx)};
+  for (int64_t i = 0; i < batch_size; ++i)
+    p[i] = pick(rng_);
+  return {states_.index_select(0, idx),       actions_.index_select(0, idx),
+          rewards_.index_select(0, idx),      next_states_.index_select(0, idx),
+          next_actions_.index_select(0, idx), dones_.index_select(0, idx)};
 }
 
 Batch ReplayBuffer::all() const {
   torch::Tensor idx = (torch::arange(size_, torch::kInt64) + (size_ == capacity_ ? next_ : 0)) % capacity_;
-  return {states_.index_select(0, idx),      actions_.index_select(0, idx),      rewards_.index_select(0, idx),
-          next_states_.index_select(0, idx), next_actions_.index_select(0, idx), dones_.index_select(0, idx)};
+  return {states_.index_select(0, idx),       actions_.index_select(0, idx),
+          rewards_.index_select(0, idx),      next_states_.index_select(0, idx),
+          next_actions_.index_select(0, idx), dones_.index_select(0, idx)};
 }
 
 void ReplayBuffer::save(torch::serialize::OutputArchive& archive) const {
@@ -78,15 +82,15 @@ void ReplayBuffer::load(torch::serialize::InputArchive& archive) {
   check(sizes.numel() == 5, "replay buffer record is malformed");
   const int64_t* s = sizes.data_ptr<int64_t>();
   check(s[0] == capacity_ && s[1] == state_dim_ && s[2] == action_dim_,
-        "replay buffer in checkpoint has capacity {} and dims ({}, {}); this run expects {} and ({}, {})", s[0], s[1],
-        s[2], capacity_, state_dim_, action_dim_);
+        "replay buffer in checkpoint has capacity {} and dims ({}, {}); this run expects {} and ({}, {})",
+        s[0], s[1], s[2], capacity_, state_dim_, action_dim_);
   const int64_t rows = s[3];
   check(rows >= 0 && rows <= capacity_ && s[4] >= 0 && s[4] < capacity_, "replay buffer record is malformed");
   auto read_into = [&](const char* key, torch::Tensor& dst) {
     torch::Tensor t;
     archive.read(key, t);
-    check(t.dim() == 2 && t.size(0) == rows && t.size(1) == dst.size(1), "replay buffer field '{}' has a wrong shape",
-          key);
+    check(t.dim() == 2 && t.size(0) == rows && t.size(1) == dst.size(1),
+          "replay buffer field '{}' has a wrong shape", key);
     dst.narrow(0, 0, rows).copy_(t);
   };
   read_into("states", states_);

@@ -12,9 +12,13 @@ Activation parse_activation(const std::string& name) {
   throw Error(fmt::format("unknown activation '{}'; allowed: sin, relu", name));
 }
 
-std::string activation_name(Activation a) { return a == Activation::kSin ? "sin" : "relu"; }
+std::string activation_name(Activation a) {
+  return a == Activation::kSin ? "sin" : "relu";
+}
 
-at::Tensor activate(const at::Tensor& x, Activation a) { return a == Activation::kSin ? at::sin(x) : at::relu(x); }
+at::Tensor activate(const at::Tensor& x, Activation a) {
+  return a == Activation::kSin ? at::sin(x) : at::relu(x);
+}
 
 void activate_(at::Tensor& x, Activation a) {
   if (a == Activation::kSin) {

@@ -9,8 +9,8 @@
 namespace hlt {
 
 DynamicsModelImpl::DynamicsModelImpl(const DynamicsModelOptions& o) : options_(o) {
-  check(o.state_dim > 0 && o.action_dim > 0 && o.hidden > 0, "DynamicsModel needs positive sizes, got n={} m={} h={}",
-        o.state_dim, o.action_dim, o.hidden);
+  check(o.state_dim > 0 && o.action_dim > 0 && o.hidden > 0,
+        "DynamicsModel needs positive sizes, got n={} m={} h={}", o.state_dim, o.action_dim, o.hidden);
   fc1 = register_module("fc1", torch::nn::Linear(o.state_dim + o.action_dim, o.hidden));
   fc2 = register_module("fc2", torch::nn::Linear(o.hidden, o.state_dim));
   log_std_param = register_parameter("log_std", torch::zeros({1, o.state_dim}));

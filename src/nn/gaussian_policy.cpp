@@ -10,7 +10,8 @@ namespace hlt {
 namespace {
 
 // Hidden layers then an output layer; only the output layer gets the small uniform initialisation.
-torch::nn::ModuleList make_mlp(int64_t in, const std::vector<int64_t>& hidden, int64_t out, double init_scale) {
+torch::nn::ModuleList make_mlp(int64_t in, const std::vector<int64_t>& hidden, int64_t out,
+                               double init_scale) {
   torch::nn::ModuleList layers;
   int64_t width = in;
   for (int64_t h : hidden) {
@@ -39,10 +40,11 @@ constexpr double kTanhEps = 1e-6;
 }  // namespace
 
 GaussianPolicyImpl::GaussianPolicyImpl(const GaussianPolicyOptions& o) : options_(o) {
-  check(o.state_dim > 0 && o.action_dim > 0, "GaussianPolicy needs positive sizes, got n={} m={}", o.state_dim,
-        o.action_dim);
+  check(o.state_dim > 0 && o.action_dim > 0, "GaussianPolicy needs positive sizes, got n={} m={}",
+        o.state_dim, o.action_dim);
   check(!o.hidden.empty(), "GaussianPolicy needs at least one hidden layer");
-  for (int64_t h : o.hidden) check(h > 0, "GaussianPolicy hidden sizes must be positive");
+  for (int64_t h : o.hidden)
+    check(h > 0, "GaussianPolicy hidden sizes must be positive");
   mean_layers = register_module("mean", make_mlp(o.state_dim, o.hidden, o.action_dim, o.init_scale));
   log_std_layers = register_module("log_std", make_mlp(o.state_dim, o.hidden, o.action_dim, o.init_scale));
 }

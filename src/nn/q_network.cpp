@@ -7,7 +7,8 @@
 namespace hlt {
 
 QNetworkImpl::QNetworkImpl(const QNetworkOptions& o) : options_(o) {
-  check(o.state_dim > 0 && o.action_dim > 0 && !o.hidden.empty(), "QNetwork needs positive sizes and a hidden layer");
+  check(o.state_dim > 0 && o.action_dim > 0 && !o.hidden.empty(),
+        "QNetwork needs positive sizes and a hidden layer");
   layers = register_module("layers", torch::nn::ModuleList());
   int64_t width = o.state_dim + o.action_dim;
   for (int64_t h : o.hidden) {

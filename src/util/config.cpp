@@ -50,7 +50,8 @@ std::string format_value(const Config::Value& v) {
 
 size_t edit_distance(const std::string& a, const std::string& b) {
   std::vector<size_t> row(b.size() + 1);
-  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (size_t j = 0; j <= b.size(); ++j)
+    row[j] = j;
   for (size_t i = 1; i <= a.size(); ++i) {
     size_t diag = row[0];
     row[0] = i;
@@ -64,8 +65,8 @@ size_t edit_distance(const std::string& a, const std::string& b) {
 }
 
 // Flattens nested maps into dotted keys; sequences and scalars are leaves.
-void flatten(const YAML::Node& node, const std::string& prefix, std::vector<std::pair<std::string, YAML::Node>>& out,
-             const std::string& source) {
+void flatten(const YAML::Node& node, const std::string& prefix,
+             std::vector<std::pair<std::string, YAML::Node>>& out, const std::string& source) {
   if (node.IsMap()) {
     for (const auto& kv : node) {
       const std::string k = kv.first.as<std::string>();
@@ -89,7 +90,8 @@ std::string Config::allowed(const Field& f) {
     case 2:
       return fmt::format("a number in [{}, {}]", f.min, f.max);
     case 3:
-      return f.choices.empty() ? std::string("a string") : fmt::format("one of: {}", fmt::join(f.choices, ", "));
+      return f.choices.empty() ? std::string("a string")
+                               : fmt::format("one of: {}", fmt::join(f.choices, ", "));
     default:
       return fmt::format("a list of integers in [{}, {}] such as [128, 64]", static_cast<int64_t>(f.min),
                          static_cast<int64_t>(f.max));
@@ -128,9 +130,10 @@ Config& Config::add_string(const std::string& key, const std::string& default_va
   return declare(key, Field{default_value, {}, doc, 0, 0, std::move(choices)});
 }
 
-Config& Config::add_int_list(const std::string& key, IntList default_value, const std::string& doc, int64_t min,
-                             int64_t max) {
-  return declare(key, Field{std::move(default_value), {}, doc, static_cast<double>(min), static_cast<double>(max), {}});
+Config& Config::add_int_list(const std::string& key, IntList default_value, const std::string& doc,
+                             int64_t min, int64_t max) {
+  return declare(
+      key, Field{std::move(default_value), {}, doc, static_cast<double>(min), static_cast<double>(max), {}});
 }
 
 std::string Config::unknown_key_message(const std::string& key, const std::string& source) const {
@@ -173,14 +176,16 @@ std::optional<Config::Value> convert(const YAML::Node& node, const Config::Value
       default: {
         Config::IntList list;
         if (node.IsSequence()) {
-          for (const auto& item : node) list.push_back(item.as<int64_t>());
+          for (const auto& item : node)
+            list.push_back(item.as<int64_t>());
         } else if (node.IsScalar()) {
           // Accept "128,64" and "128x64" on the command line.
           std::string text = node.as<std::string>();
           std::replace(text.begin(), text.end(), 'x', ',');
           std::stringstream ss(text);
           std::string item;
-          while (std::getline(ss, item, ',')) list.push_back(YAML::Load(item).as<int64_t>());
+          while (std::getline(ss, item, ','))
+            list.push_back(YAML::Load(item).as<int64_t>());
         } else {
           return std::nullopt;
         }
@@ -211,7 +216,8 @@ void Config::merge_yaml(const std::string& yaml_text, const std::string& source)
     const std::string shown = node.IsScalar() ? node.Scalar() : YAML::Dump(node);
     auto converted = convert(node, f.value);
     if (!converted) {
-      throw Error(fmt::format("config key '{}' in {}: expected {}, got '{}'", key, source, allowed(f), shown));
+      throw Error(
+          fmt::format("config key '{}' in {}: expected {}, got '{}'", key, source, allowed(f), shown));
     }
     const Value& v = *converted;
     bool ok = true;
@@ -225,14 +231,19 @@ void Config::merge_yaml(const std::string& yaml_text, const std::string& source)
       ok = std::count(f.choices.begin(), f.choices.end(), std::get<std::string>(v)) > 0;
     } else if (v.index() == 4) {
       const auto& list = std::get<IntList>(v);
-      ok = !list.empty() && std::all_of(list.begin(), list.end(), [&](int64_t x) { return x >= f.min && x <= f.max; });
+      ok = !list.empty() &&
+           std::all_of(list.begin(), list.end(), [&](int64_t x) { return x >= f.min && x <= f.max; });
     }
-    if (!ok) throw Error(fmt::format("config key '{}' in {}: expected {}, got '{}'", key, source, allowed(f), shown));
+    if (!ok)
+      throw Error(
+          fmt::format("config key '{}' in {}: expected {}, got '{}'", key, source, allowed(f), shown));
     f.value = v;
   }
 }
 
-void Config::load_file(const std::string& path) { merge_yaml(read_file(path), path); }
+void Config::load_file(const std::string& path) {
+  merge_yaml(read_file(path), path);
+}
 
 void Config::set(const std::string& key, const std::string& value_text, const std::string& source) {
   if (!fields_.count(key)) throw Error(unknown_key_message(key, source));
@@ -249,7 +260,8 @@ void Config::set(const std::string& key, const std::string& value_text, const st
   std::vector<std::string> parts;
   std::stringstream ss(key);
   std::string part;
-  while (std::getline(ss, part, '.')) parts.push_back(part);
+  while (std::getline(ss, part, '.'))
+    parts.push_back(part);
   YAML::Node leaf = node;
   for (auto it = parts.rbegin(); it != parts.rend(); ++it) {
     YAML::Node parent;
@@ -273,9 +285,15 @@ const Config::Field& Config::field(const std::string& key, const char* type) con
   return it->second;
 }
 
-bool Config::get_bool(const std::string& key) const { return std::get<bool>(field(key, "bool").value); }
-int64_t Config::get_int(const std::string& key) const { return std::get<int64_t>(field(key, "int").value); }
-double Config::get_double(const std::string& key) const { return std::get<double>(field(key, "float").value); }
+bool Config::get_bool(const std::string& key) const {
+  return std::get<bool>(field(key, "bool").value);
+}
+int64_t Config::get_int(const std::string& key) const {
+  return std::get<int64_t>(field(key, "int").value);
+}
+double Config::get_double(const std::string& key) const {
+  return std::get<double>(field(key, "float").value);
+}
 const std::string& Config::get_string(const std::string& key) const {
   return std::get<std::string>(field(key, "string").value);
 }
@@ -285,7 +303,8 @@ const Config::IntList& Config::get_int_list(const std::string& key) const {
 
 std::vector<std::string> Config::keys() const {
   std::vector<std::string> out;
-  for (const auto& kv : fields_) out.push_back(kv.first);
+  for (const auto& kv : fields_)
+    out.push_back(kv.first);
   return out;
 }
 
@@ -310,7 +329,8 @@ void emit(YAML::Emitter& out, const KeyTree& tree) {
           using T = std::decay_t<decltype(x)>;
           if constexpr (std::is_same_v<T, Config::IntList>) {
             out << YAML::Flow << YAML::BeginSeq;
-            for (auto v : x) out << v;
+            for (auto v : x)
+              out << v;
             out << YAML::EndSeq;
           } else if constexpr (std::is_same_v<T, std::string>) {
             out << YAML::DoubleQuoted << x;
@@ -336,7 +356,8 @@ std::string Config::to_yaml() const {
     KeyTree* node = &root;
     std::stringstream ss(key);
     std::string part;
-    while (std::getline(ss, part, '.')) node = &node->children[part];
+    while (std::getline(ss, part, '.'))
+      node = &node->children[part];
     node->value = &f.value;
   }
   YAML::Emitter out;
@@ -344,12 +365,15 @@ std::string Config::to_yaml() const {
   return std::string(out.c_str()) + "\n";
 }
 
-void Config::save(const std::string& path) const { write_file_atomic(path, to_yaml()); }
+void Config::save(const std::string& path) const {
+  write_file_atomic(path, to_yaml());
+}
 
 std::string Config::describe() const {
   std::string out;
   for (const auto& [key, f] : fields_) {
-    out += fmt::format("  {:<28} {} (default {}; {})\n", key, f.doc, format_value(f.default_value), allowed(f));
+    out +=
+        fmt::format("  {:<28} {} (default {}; {})\n", key, f.doc, format_value(f.default_value), allowed(f));
   }
   return out;
 }

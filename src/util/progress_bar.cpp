@@ -13,7 +13,9 @@ ProgressBar::ProgressBar(int64_t start, int64_t total, bool enabled)
   t0_ = last_draw_ = std::chrono::steady_clock::now();
 }
 
-bool ProgressBar::stderr_is_terminal() { return ::isatty(STDERR_FILENO) == 1; }
+bool ProgressBar::stderr_is_terminal() {
+  return ::isatty(STDERR_FILENO) == 1;
+}
 
 void ProgressBar::set(const std::string& name, double value) {
   for (auto& kv : values_) {
@@ -43,9 +45,10 @@ void ProgressBar::draw() {
   const int filled = static_cast<int>(frac * width);
   std::string bar = std::string(filled, '#') + std::string(width - filled, '-');
   std::string extra;
-  for (const auto& [name, value] : values_) extra += fmt::format(" {} {:.4g}", name, value);
-  fmt::print(stderr, "\r[{}] {}/{}{} | {:.1f} steps/s | ETA {:02d}:{:02d}\033[K", bar, step_, total_, extra, rate,
-             static_cast<int>(eta) / 60, static_cast<int>(eta) % 60);
+  for (const auto& [name, value] : values_)
+    extra += fmt::format(" {} {:.4g}", name, value);
+  fmt::print(stderr, "\r[{}] {}/{}{} | {:.1f} steps/s | ETA {:02d}:{:02d}\033[K", bar, step_, total_, extra,
+             rate, static_cast<int>(eta) / 60, static_cast<int>(eta) % 60);
   std::fflush(stderr);
 }
 

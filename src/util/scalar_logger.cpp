@@ -44,16 +44,16 @@ std::vector<ScalarRow> ScalarLogger::read(const std::string& path) {
   std::istringstream in(read_file(path));
   std::string line;
   std::vector<ScalarRow> rows;
-  check(static_cast<bool>(std::getline(in, line)) && line == kHeader, "{} is not a scalar log (header '{}')", path,
-        kHeader);
+  check(static_cast<bool>(std::getline(in, line)) && line == kHeader, "{} is not a scalar log (header '{}')",
+        path, kHeader);
   int line_no = 1;
   while (std::getline(in, line)) {
     ++line_no;
     if (line.empty()) continue;
     std::stringstream ss(line);
     std::string wall, step, tag, value;
-    const bool ok = std::getline(ss, wall, ',') && std::getline(ss, step, ',') && std::getline(ss, tag, ',') &&
-                    std::getline(ss, value);
+    const bool ok = std::getline(ss, wall, ',') && std::getline(ss, step, ',') &&
+                    std::getline(ss, tag, ',') && std::getline(ss, value);
     check(ok, "{}:{}: expected 4 comma-separated fields, got '{}'", path, line_no, line);
     try {
       rows.push_back({std::stod(wall), std::stoll(step), tag, std::stod(value)});

@@ -14,7 +14,9 @@
 namespace hlt {
 namespace {
 
-std::string temp(const std::string& name) { return (std::filesystem::temp_directory_path() / name).string(); }
+std::string temp(const std::string& name) {
+  return (std::filesystem::temp_directory_path() / name).string();
+}
 
 std::string error_of(const std::function<void()>& f) {
   try {
@@ -78,7 +80,8 @@ TEST(Checkpoint, MismatchedModelIsNamed) {
   CheckpointReader r(path);
   const std::string m = error_of([&] { r.load_module("dynamics", *big); });
   EXPECT_NE(m.find("dynamics.fc1.weight' has shape 20x4, the model expects 200x4"), std::string::npos) << m;
-  EXPECT_NE(error_of([&] { r.load_module("policy", *big); }).find("has no 'module.policy'"), std::string::npos);
+  EXPECT_NE(error_of([&] { r.load_module("policy", *big); }).find("has no 'module.policy'"),
+            std::string::npos);
   EXPECT_NE(error_of([&] { r.get_int("step"); }).find("no integer 'step'"), std::string::npos);
 }
 

@@ -71,7 +71,8 @@ TEST(RewardModel, TdLossMatchesHandComputation) {
   auto q = model->forward(s, a), q2 = model->forward(s2, a2);
   double expected = 0;
   for (int i = 0; i < 4; ++i) {
-    const double target = r[i][0].item<double>() + 0.95 * (1 - done[i][0].item<double>()) * q2[i][0].item<double>();
+    const double target =
+        r[i][0].item<double>() + 0.95 * (1 - done[i][0].item<double>()) * q2[i][0].item<double>();
     expected += std::pow(target - q[i][0].item<double>(), 2) / 4;
   }
   EXPECT_NEAR(model->td_loss(s, a, r, s2, a2, done, 0.95).item<double>(), expected, 1e-12);
@@ -103,7 +104,8 @@ TEST(GaussianPolicy, LogProbMatchesClosedFormTanhGaussian) {
       const double u = std::atanh(ai);
       const double mu = mean[i][j].item<double>(), sd = std::exp(log_std[i][j].item<double>());
       // density of a = tanh(u): N(u; mu, sd) / |da/du|, da/du = 1 - a^2 (plus the 1e-6 guard).
-      expected += -0.5 * std::pow((u - mu) / sd, 2) - std::log(sd * std::sqrt(2 * M_PI)) - std::log(1 - ai * ai + 1e-6);
+      expected += -0.5 * std::pow((u - mu) / sd, 2) - std::log(sd * std::sqrt(2 * M_PI)) -
+                  std::log(1 - ai * ai + 1e-6);
     }
     EXPECT_NEAR(lp[i][0].item<double>(), expected, 1e-9);
   }
@@ -141,7 +143,8 @@ TEST(GaussianPolicy, LogStdIsClamped) {
   GaussianPolicy policy(GaussianPolicyOptions{1, 1, {4}, Activation::kSin});
   {
     torch::NoGradGuard g;
-    for (auto& p : policy->log_std_layers->parameters()) p.fill_(10.0);
+    for (auto& p : policy->log_std_layers->parameters())
+      p.fill_(10.0);
   }
   EXPECT_DOUBLE_EQ(policy->forward(torch::ones({1, 1})).second.item<double>(), 2.0);
 }
@@ -153,7 +156,8 @@ TEST(Gradients, EveryModelMatchesFiniteDifferences) {
   RewardModel rew(RewardModelOptions{n, m, 10});
   GaussianPolicy pol(GaussianPolicyOptions{n, m, {9, 7}, Activation::kSin});
   QNetwork q(QNetworkOptions{n, m, {11, 6}});
-  for (torch::nn::Module* mod : std::initializer_list<torch::nn::Module*>{dyn.get(), rew.get(), pol.get(), q.get()}) {
+  for (torch::nn::Module* mod :
+       std::initializer_list<torch::nn::Module*>{dyn.get(), rew.get(), pol.get(), q.get()}) {
     mod->to(torch::kFloat64);
   }
   auto s = torch::randn({4, n}, torch::kFloat64), a = torch::rand({4, m}, torch::kFloat64) * 1.6 - 0.8;
@@ -181,11 +185,13 @@ TEST(Gradients, EveryModelMatchesFiniteDifferences) {
     EXPECT_LT(testing::relative_error(g, fd), 1e-6);
   };
   check_param(dyn->log_std_param, [&] { return dyn->loss(s, a, s2); });
-  check_param(pol->mean_layers[0]->as<torch::nn::Linear>()->weight, [&] { return pol->log_prob(s, a).sum(); });
+  check_param(pol->mean_layers[0]->as<torch::nn::Linear>()->weight,
+              [&] { return pol->log_prob(s, a).sum(); });
   // gamma = 0: with a bootstrapped target the loss is a semi-gradient (target detached), which finite
   // differences of the full loss would not reproduce; the detach itself is tested above.
   check_param(rew->fc2->weight, [&] {
-    return rew->td_loss(s, a, torch::ones({4, 1}, torch::kFloat64), s2, a, torch::zeros({4, 1}, torch::kFloat64), 0.0);
+    return rew->td_loss(s, a, torch::ones({4, 1}, torch::kFloat64), s2, a,
+                        torch::zeros({4, 1}, torch::kFloat64), 0.0);
   });
 }
 

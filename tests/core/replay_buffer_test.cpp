@@ -18,7 +18,8 @@ void add_numbered(ReplayBuffer& rb, int i) {
 
 TEST(ReplayBuffer, StoresFieldsAndWrapsAround) {
   ReplayBuffer rb(5, 2, 1, 0);
-  for (int i = 0; i < 3; ++i) add_numbered(rb, i);
+  for (int i = 0; i < 3; ++i)
+    add_numbered(rb, i);
   EXPECT_EQ(rb.size(), 3);
   Batch b = rb.all();
   EXPECT_EQ(b.states[2][0].item<float>(), 2.0f);
@@ -29,10 +30,12 @@ TEST(ReplayBuffer, StoresFieldsAndWrapsAround) {
   EXPECT_EQ(b.next_actions[2][0].item<float>(), 0.5f);
   EXPECT_EQ(b.dones[0][0].item<float>(), 1.0f);
   EXPECT_EQ(b.dones[1][0].item<float>(), 0.0f);
-  for (int i = 3; i < 12; ++i) add_numbered(rb, i);
+  for (int i = 3; i < 12; ++i)
+    add_numbered(rb, i);
   EXPECT_EQ(rb.size(), 5);
   b = rb.all();  // oldest first: 7, 8, 9, 10, 11
-  for (int j = 0; j < 5; ++j) EXPECT_EQ(b.states[j][0].item<float>(), 7.0f + j);
+  for (int j = 0; j < 5; ++j)
+    EXPECT_EQ(b.states[j][0].item<float>(), 7.0f + j);
 }
 
 TEST(ReplayBuffer, SamplingIsUniformAndSeeded) {
@@ -56,7 +59,8 @@ TEST(ReplayBuffer, SamplingIsUniformAndSeeded) {
   // Chi-square with 9 degrees of freedom: the 99.9% quantile is 27.9.
   double chi2 = 0;
   const double expected = double(draws) / cap;
-  for (int c : counts) chi2 += (c - expected) * (c - expected) / expected;
+  for (int c : counts)
+    chi2 += (c - expected) * (c - expected) / expected;
   EXPECT_LT(chi2, 27.9);
   // Rows stay together: reward and action belong to the same transition as the state.
   EXPECT_TRUE(torch::allclose(b.rewards.squeeze(1), b.states.select(1, 0) * 10));
@@ -67,7 +71,8 @@ TEST(ReplayBuffer, SamplingIsUniformAndSeeded) {
 TEST(ReplayBuffer, SaveLoadRoundTripContinuesIdentically) {
   const std::string path = (std::filesystem::temp_directory_path() / "hlt_rb_test.pt").string();
   ReplayBuffer rb(8, 2, 1, 7);
-  for (int i = 0; i < 11; ++i) add_numbered(rb, i);
+  for (int i = 0; i < 11; ++i)
+    add_numbered(rb, i);
   rb.sample(3);
   {
     CheckpointWriter w;

@@ -44,7 +44,8 @@ TEST(EnvApi, TimeLimitIsTruncationNotTermination) {
   Integrator env;
   env.reset(1);
   StepResult r;
-  for (int i = 0; i < 10; ++i) r = env.step(Eigen::VectorXd::Constant(1, 0.1));
+  for (int i = 0; i < 10; ++i)
+    r = env.step(Eigen::VectorXd::Constant(1, 0.1));
   EXPECT_TRUE(r.truncated);
   EXPECT_FALSE(r.terminated);
   EXPECT_THROW(env.step(Eigen::VectorXd::Zero(1)), Error);  // must reset first

@@ -37,13 +37,15 @@ inline double relative_error(const torch::Tensor& a, const torch::Tensor& b, dou
 }
 
 // Checks the autograd gradient of f at x against central differences.
-inline void expect_gradient_matches(const std::function<torch::Tensor(const torch::Tensor&)>& f, const torch::Tensor& x,
-                                    double tolerance = 1e-6) {
+inline void expect_gradient_matches(const std::function<torch::Tensor(const torch::Tensor&)>& f,
+                                    const torch::Tensor& x, double tolerance = 1e-6) {
   torch::Tensor xg = x.detach().clone().to(torch::kFloat64).requires_grad_(true);
   torch::Tensor y = f(xg);
   auto grads = torch::autograd::grad({y}, {xg});
   torch::Tensor fd = finite_difference_gradient(f, x);
-  EXPECT_LT(relative_error(grads[0], fd), tolerance) << "autograd:\n" << grads[0] << "\nfinite differences:\n" << fd;
+  EXPECT_LT(relative_error(grads[0], fd), tolerance) << "autograd:\n"
+                                                     << grads[0] << "\nfinite differences:\n"
+                                                     << fd;
 }
 
 }  // namespace hlt::testing

@@ -33,7 +33,8 @@ std::string message_of(const std::function<void()>& f) {
 TEST(Config, DefaultsAndYamlAndOverrides) {
   Config c = make_config();
   EXPECT_EQ(c.get_string("env"), "pendulum");
-  c.merge_yaml("env: cartpole_swingup\nplanner:\n  samples: 60\n  lambda: 2\npolicy:\n  hidden: [128, 64]\n", "test");
+  c.merge_yaml("env: cartpole_swingup\nplanner:\n  samples: 60\n  lambda: 2\npolicy:\n  hidden: [128, 64]\n",
+               "test");
   EXPECT_EQ(c.get_string("env"), "cartpole_swingup");
   EXPECT_EQ(c.get_int("planner.samples"), 60);
   EXPECT_DOUBLE_EQ(c.get_double("planner.lambda"), 2.0);  // an integer literal is a valid float

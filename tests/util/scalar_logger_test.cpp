@@ -54,7 +54,8 @@ TEST(ScalarLogger, TruncateAfterDropsLaterAndPartialRows) {
   const std::string path = temp_path("trunc.csv");
   {
     ScalarLogger log(path);
-    for (int s = 0; s <= 10; ++s) log.log(s * 100, "v", s);
+    for (int s = 0; s <= 10; ++s)
+      log.log(s * 100, "v", s);
   }
   {
     std::ofstream out(path, std::ios::app);

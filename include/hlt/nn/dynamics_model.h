@@ -29,7 +29,8 @@ class DynamicsModelImpl : public torch::nn::Module {
   // The clamped log-std, [1, n].
   torch::Tensor log_std() const;
   // -mean over batch and state dimensions of log N(next_state; forward(state, action), exp(log_std)^2).
-  torch::Tensor loss(const torch::Tensor& state, const torch::Tensor& action, const torch::Tensor& next_state);
+  torch::Tensor loss(const torch::Tensor& state, const torch::Tensor& action,
+                     const torch::Tensor& next_state);
 
   const DynamicsModelOptions& options() const { return options_; }
   torch::nn::Linear fc1{nullptr}, fc2{nullptr};

@@ -47,8 +47,8 @@ class GaussianPolicyImpl : public torch::nn::Module {
   torch::Tensor log_prob(const torch::Tensor& state, const torch::Tensor& action);
 
   // Log-density of u under N(mean, exp(log_std)^2) plus the tanh correction for a = tanh(u); [B, 1].
-  static torch::Tensor squashed_log_prob(const torch::Tensor& u, const torch::Tensor& action, const torch::Tensor& mean,
-                                         const torch::Tensor& log_std);
+  static torch::Tensor squashed_log_prob(const torch::Tensor& u, const torch::Tensor& action,
+                                         const torch::Tensor& mean, const torch::Tensor& log_std);
 
   const GaussianPolicyOptions& options() const { return options_; }
   torch::nn::ModuleList mean_layers{nullptr}, log_std_layers{nullptr};

@@ -24,8 +24,8 @@ class RewardModelImpl : public torch::nn::Module {
   torch::Tensor forward(const torch::Tensor& state, const torch::Tensor& action);
   // mean((r + gamma (1 - done) r(s', a')).detach() - r(s, a))^2; reward and done are [B, 1].
   torch::Tensor td_loss(const torch::Tensor& state, const torch::Tensor& action, const torch::Tensor& reward,
-                        const torch::Tensor& next_state, const torch::Tensor& next_action, const torch::Tensor& done,
-                        double gamma);
+                        const torch::Tensor& next_state, const torch::Tensor& next_action,
+                        const torch::Tensor& done, double gamma);
 
   const RewardModelOptions& options() const { return options_; }
   torch::nn::Linear fc1{nullptr}, fc2{nullptr}, fc3{nullptr};

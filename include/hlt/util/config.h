@@ -22,8 +22,10 @@ class Config {
 
   // Declarations. Keys are dotted paths of [a-z0-9_] segments. Redeclaring a key is a programming error.
   Config& add_bool(const std::string& key, bool default_value, const std::string& doc);
-  Config& add_int(const std::string& key, int64_t default_value, const std::string& doc, int64_t min, int64_t max);
-  Config& add_double(const std::string& key, double default_value, const std::string& doc, double min, double max);
+  Config& add_int(const std::string& key, int64_t default_value, const std::string& doc, int64_t min,
+                  int64_t max);
+  Config& add_double(const std::string& key, double default_value, const std::string& doc, double min,
+                     double max);
   Config& add_string(const std::string& key, const std::string& default_value, const std::string& doc,
                      std::vector<std::string> choices = {});
   Config& add_int_list(const std::string& key, IntList default_value, const std::string& doc, int64_t min,

@@ -12,7 +12,8 @@ void write_file_atomic(const std::string& path, const std::string& content);
 
 // Lets `writer` fill a temporary path next to `path`, then renames it over `path`. Used for writers that
 // insist on a file name of their own (torch::save, cv::FileStorage).
-void write_atomic_with(const std::string& path, const std::function<void(const std::string& tmp_path)>& writer);
+void write_atomic_with(const std::string& path,
+                       const std::function<void(const std::string& tmp_path)>& writer);
 
 // Reads a whole file; throws hlt::Error naming the path if it cannot be read.
 std::string read_file(const std::string& path);

@@ -15,6 +15,8 @@ inline uint64_t mix_seed(uint64_t x) {
 }
 
 // The seed of stream `stream` under run seed `seed`.
-inline uint64_t derive_seed(uint64_t seed, uint64_t stream) { return mix_seed(mix_seed(seed) ^ mix_seed(stream)); }
+inline uint64_t derive_seed(uint64_t seed, uint64_t stream) {
+  return mix_seed(mix_seed(seed) ^ mix_seed(stream));
+}
 
 }  // namespace hlt

@@ -1,0 +1,63 @@
+// hlt::Sac: Soft Actor-Critic (Haarnoja et al. 2018, the version with twin soft-Q critics, Polyak-averaged
+// target critics and automatic entropy tuning). It owns the critics, the entropy temperature and all three
+// optimizers; the policy is shared with the controllers that act with it.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <torch/optim/adam.h>
+
+#include "hlt/data/replay_buffer.h"
+#include "hlt/nn/gaussian_policy.h"
+#include "hlt/nn/q_network.h"
+
+namespace hlt {
+
+class CheckpointWriter;
+class CheckpointReader;
+
+struct SacOptions {
+  double gamma = 0.99;
+  double tau = 0.005;
+  double q_lr = 3e-4;
+  double policy_lr = 3e-4;
+  double alpha_lr = 3e-4;
+  std::vector<int64_t> q_hidden = {256, 256};
+  double initial_alpha = 1.0;
+  // Entropy target; NaN means -action_dim (the usual heuristic).
+  double target_entropy = std::numeric_limits<double>::quiet_NaN();
+};
+
+struct SacLosses {
+  double critic = 0;   // mean of the two critics' squared TD errors (each is a mean over the batch)
+  double actor = 0;    // E[alpha log pi - min Q]
+  double alpha = 0;    // temperature after the update
+  double entropy = 0;  // -E[log pi] of the batch's fresh actions
+};
+
+class Sac {
+ public:
+  Sac(GaussianPolicy policy, int64_t state_dim, int64_t action_dim, const SacOptions& options);
+
+  // One gradient step of the critics, the policy and the temperature on `batch`.
+  SacLosses update(const Batch& batch);
+
+  GaussianPolicy& policy() { return policy_; }
+  double alpha() const;
+
+  void save(CheckpointWriter& writer) const;
+  void load(CheckpointReader& reader);
+
+ private:
+  SacOptions options_;
+  double target_entropy_;
+  GaussianPolicy policy_;
+  QNetwork q1_{nullptr}, q2_{nullptr}, q1_target_{nullptr}, q2_target_{nullptr};
+  torch::Tensor log_alpha_;
+  std::unique_ptr<torch::optim::Adam> q_opt_, policy_opt_, alpha_opt_;
+  std::vector<torch::Tensor> q_params_, target_params_;
+};
+
+}  // namespace hlt

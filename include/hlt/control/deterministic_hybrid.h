@@ -1,0 +1,78 @@
+// hlt::DeterministicHybrid: the paper's Alg. 1 (Lemma 1, Theorem 1, Corollary 1) in discrete time.
+//
+// From the observed s0 it rolls the learned dynamics forward under the policy mean, gets every Jacobian it
+// needs by autograd (all H steps in one batched backward pass), sweeps the adjoint backwards,
+// rho_t = g_t + A_t^T rho_{t+1} with rho_H = 0, A_t = df/ds + df/da dmu/ds, g_t = dr/ds + dr/da dmu/ds, and
+// applies a* = mu(s0) + Sigma(s0) (dr/da|_0 + B_0^T rho_1) + eps, clipped to [-1, 1], where
+// eps ~ N(0, decay^t) over all environment interactions t. It reports the mode insertion gradient
+// (r(s0, a*) - r(s0, mu(s0))) + rho_1^T (f(s0, a*) - f(s0, mu(s0))).
+// Without a policy (mu = 0, Sigma = I) it is the model-based deterministic baseline.
+#pragma once
+
+#include <Eigen/Core>
+
+#include "hlt/control/controller.h"
+#include "hlt/nn/dynamics_model.h"
+#include "hlt/nn/reward_model.h"
+
+namespace hlt {
+
+struct DeterministicHybridOptions {
+  int64_t horizon = 5;
+  // The authors clamp rho to [-1, 1] before use; off by default (the unclamped rho is the exact gradient).
+  bool clamp_adjoint = false;
+  // Exploration noise std = exploration_decay^t (t counts environment interactions; 0.999 in the paper).
+  double exploration_decay = 0.999;
+  bool explore = true;
+};
+
+// Everything the adjoint sweep computed for the last state, for tests and diagnostics. Row-major Eigen
+// matrices in double precision.
+struct AdjointTrace {
+  Eigen::MatrixXd states;       // [H + 1, n] closed-loop trajectory s_0..s_H
+  Eigen::MatrixXd actions;      // [H, m] mu(s_t)
+  Eigen::MatrixXd rho;          // [H + 1, n] rho_0..rho_H (rho_H = 0)
+  Eigen::VectorXd dreturn_da0;  // [m] dr/da|_0 + B_0^T rho_1: derivative of the predicted return w.r.t. a_0
+  Eigen::VectorXd sigma;        // [m] the policy variance at s0 (ones without a policy)
+  Eigen::VectorXd mean_action;  // [m] mu(s0)
+  Eigen::VectorXd action;       // [m] a* before exploration noise and clipping
+};
+
+// Jacobians of the models along a trajectory, by autograd, all steps in one backward pass. Row blocks per
+// step: fs rows [t n, t n + n) hold d f / d s at step t (n x n), fa the n x m d f / d a, mus the m x n
+// d mu / d s (zero without a policy); rs and ra hold d r / d s and d r / d a as rows.
+struct ModelJacobians {
+  Eigen::MatrixXd fs, fa, mus, rs, ra;
+};
+// `states` [H, n] and `actions` [H, m] in the models' dtype; `policy` may be nullptr.
+ModelJacobians model_jacobians(DynamicsModel& dynamics, RewardModel& reward, GaussianPolicy& policy,
+                               const at::Tensor& states, const at::Tensor& actions);
+
+class DeterministicHybrid : public Controller {
+ public:
+  // `policy` may be nullptr: the model-based baseline.
+  DeterministicHybrid(GaussianPolicy policy, DynamicsModel dynamics, RewardModel reward,
+                      const DeterministicHybridOptions& options, std::string name = "deterministic_hybrid");
+
+  std::string name() const override { return name_; }
+  // Number of environment interactions so far (drives the exploration decay); the training loop sets it.
+  void set_interactions(int64_t t) { interactions_ = t; }
+  void set_explore(bool explore) { options_.explore = explore; }
+  const AdjointTrace& trace() const { return trace_; }
+  // Runs the forward rollout, Jacobians and adjoint sweep for `state` without acting.
+  const AdjointTrace& analyse(const at::Tensor& state);
+
+ protected:
+  at::Tensor compute_action(const at::Tensor& state) override;
+
+ private:
+  GaussianPolicy policy_;
+  DynamicsModel dynamics_;
+  RewardModel reward_;
+  DeterministicHybridOptions options_;
+  std::string name_;
+  int64_t interactions_ = 0;
+  AdjointTrace trace_;
+};
+
+}  // namespace hlt

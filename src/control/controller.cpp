@@ -1,0 +1,44 @@
+#include "hlt/control/controller.h"
+
+#include <torch/torch.h>
+
+#include "hlt/control/policy_controller.h"
+#include "hlt/util/error.h"
+
+namespace hlt {
+
+at::Tensor Controller::act(const at::Tensor& state) {
+  check(state.dim() == 1, "{}: state must be a vector, got {} dimensions", name(), state.dim());
+  at::Tensor action = compute_action(state);
+  diagnostics_.fell_back = false;
+  if (!torch::isfinite(action).all().item<bool>()) {
+    // A NaN weight or model output must never reach the environment.
+    diagnostics_.fell_back = true;
+    ++diagnostics_.fallbacks;
+    at::Tensor fallback;
+    if (fallback_policy_) {
+      torch::InferenceMode guard;
+      const auto dtype = fallback_policy_->parameters().front().scalar_type();
+      fallback = fallback_policy_->mean_action(state.to(dtype).unsqueeze(0)).squeeze(0);
+    }
+    if (!fallback.defined() || !torch::isfinite(fallback).all().item<bool>()) {
+      fallback = torch::zeros_like(action);
+    }
+    action = fallback;
+  }
+  return action.clamp(-1.0, 1.0);
+}
+
+PolicyController::PolicyController(GaussianPolicy policy, bool deterministic)
+    : Controller(policy), policy_(std::move(policy)), deterministic_(deterministic) {
+  check(!policy_.is_empty(), "PolicyController needs a policy");
+}
+
+at::Tensor PolicyController::compute_action(const at::Tensor& state) {
+  torch::InferenceMode guard;
+  const auto dtype = policy_->parameters().front().scalar_type();
+  const at::Tensor s = state.to(dtype).unsqueeze(0);
+  return (deterministic_ ? policy_->mean_action(s) : policy_->rsample(s).action).squeeze(0);
+}
+
+}  // namespace hlt

@@ -1,0 +1,346 @@
+// The hybrid controllers against finite differences, closed forms and problems with known answers.
+#include <gtest/gtest.h>
+#include <torch/torch.h>
+
+#include <cmath>
+
+#include "hlt/control/action_sampler.h"
+#include "hlt/control/deterministic_hybrid.h"
+#include "hlt/control/policy_controller.h"
+#include "hlt/control/stochastic_hybrid.h"
+#include "support/gradient_check.h"
+
+namespace hlt {
+namespace {
+
+struct Models {
+  DynamicsModel dynamics{nullptr};
+  RewardModel reward{nullptr};
+  GaussianPolicy policy{nullptr};
+};
+
+// Small random sine models in double precision, with weights large enough that every Jacobian matters.
+Models random_models(int n, int m, uint64_t seed, double policy_log_std = 0.0) {
+  torch::manual_seed(seed);
+  Models md;
+  md.dynamics = DynamicsModel(DynamicsModelOptions{n, m, 16, Activation::kSin});
+  md.reward = RewardModel(RewardModelOptions{n, m, 16});
+  md.policy = GaussianPolicy(GaussianPolicyOptions{n, m, {16}, Activation::kSin});
+  md.dynamics->to(torch::kFloat64);
+  md.reward->to(torch::kFloat64);
+  md.policy->to(torch::kFloat64);
+  torch::NoGradGuard g;
+  md.dynamics->fc2->weight.mul_(0.5);
+  // Give the policy mean a real slope (its output layer starts at +-3e-3) and a chosen constant std.
+  auto last_mean = md.policy->mean_layers[1]->as<torch::nn::Linear>();
+  last_mean->weight.uniform_(-0.5, 0.5);
+  auto last_std = md.policy->log_std_layers[1]->as<torch::nn::Linear>();
+  last_std->weight.zero_();
+  last_std->bias.fill_(policy_log_std);
+  return md;
+}
+
+// Predicted reward-to-go from step t with s_t = s and closed-loop actions mu(s) afterwards; optionally the
+// first action is given.
+double reward_to_go(Models& md, torch::Tensor s, int steps, const torch::Tensor* first_action = nullptr) {
+  torch::NoGradGuard g;
+  double total = 0;
+  s = s.view({1, -1});
+  for (int t = 0; t < steps; ++t) {
+    torch::Tensor a = (t == 0 && first_action) ? first_action->view({1, -1}) : md.policy->mean_action(s);
+    total += md.reward->forward(s, a).item<double>();
+    s = md.dynamics->forward(s, a);
+  }
+  return total;
+}
+
+TEST(ModelJacobians, MatchAnalyticJacobianOfSineNetwork) {
+  Models md = random_models(4, 2, 11);
+  const int H = 3;
+  auto X = torch::randn({H, 4}, torch::kFloat64), A = torch::rand({H, 2}, torch::kFloat64) * 2 - 1;
+  ModelJacobians J = model_jacobians(md.dynamics, md.reward, md.policy, X, A);
+  auto W1 = md.dynamics->fc1->weight, b1 = md.dynamics->fc1->bias, W2 = md.dynamics->fc2->weight;
+  for (int t = 0; t < H; ++t) {
+    auto pre = torch::mv(W1, torch::cat({X[t], A[t]})) + b1;
+    // d f / d [s, a] = [I, 0] + W2 diag(cos(pre)) W1
+    auto full = torch::mm(W2 * torch::cos(pre).unsqueeze(0), W1);
+    full.narrow(1, 0, 4).add_(torch::eye(4, torch::kFloat64));
+    for (int i = 0; i < 4; ++i) {
+      for (int j = 0; j < 4; ++j)
+        EXPECT_NEAR(J.fs(t * 4 + i, j), full[i][j].item<double>(), 1e-12);
+      for (int j = 0; j < 2; ++j)
+        EXPECT_NEAR(J.fa(t * 4 + i, j), full[i][4 + j].item<double>(), 1e-12);
+    }
+    // d mu / d s against finite differences.
+    auto fd = testing::finite_difference_gradient(
+        [&](const torch::Tensor& s) {
+          return md.policy->mean_action(s.view({1, -1}))[0][1];
+        },
+        X[t]);
+    for (int j = 0; j < 4; ++j)
+      EXPECT_NEAR(J.mus(t * 2 + 1, j), fd[j].item<double>(), 1e-8);
+  }
+}
+
+TEST(DeterministicHybrid, AdjointIsGradientOfRewardToGo) {
+  for (uint64_t seed : {1, 2, 3}) {
+    const int n = 3, m = 2, H = 5;
+    Models md = random_models(n, m, seed);
+    DeterministicHybrid ctrl(md.policy, md.dynamics, md.reward,
+                             DeterministicHybridOptions{H, false, 0.999, false});
+    auto s0 = torch::randn({n}, torch::kFloat64);
+    const AdjointTrace& tr = ctrl.analyse(s0);
+    for (int t = 0; t <= H; ++t) {
+      auto st = torch::from_blob(Eigen::VectorXd(tr.states.row(t).transpose()).data(), {n}, torch::kFloat64)
+                    .clone();
+      auto fd = testing::finite_difference_gradient(
+          [&](const torch::Tensor& s) { return torch::tensor(reward_to_go(md, s, H - t), torch::kFloat64); },
+          st);
+      auto rho =
+          torch::from_blob(Eigen::VectorXd(tr.rho.row(t).transpose()).data(), {n}, torch::kFloat64).clone();
+      if (t == H) {
+        EXPECT_EQ(rho.abs().max().item<double>(), 0.0);
+      } else {
+        EXPECT_LT(testing::relative_error(rho, fd), 1e-3) << "seed " << seed << " t " << t << "\n"
+                                                          << rho << fd;
+      }
+    }
+    // d(return)/d(a_0) = dr/da|_0 + B_0^T rho_1.
+    auto a0 =
+        torch::from_blob(Eigen::VectorXd(tr.actions.row(0).transpose()).data(), {m}, torch::kFloat64).clone();
+    auto fd_a = testing::finite_difference_gradient(
+        [&](const torch::Tensor& a) { return torch::tensor(reward_to_go(md, s0, H, &a), torch::kFloat64); },
+        a0);
+    auto analytic = torch::from_blob(Eigen::VectorXd(tr.dreturn_da0).data(), {m}, torch::kFloat64).clone();
+    EXPECT_LT(testing::relative_error(analytic, fd_a), 1e-3) << analytic << fd_a;
+  }
+}
+
+TEST(DeterministicHybrid, ModeInsertionGradientMatchesFirstOrderFormAndIsNonNegative) {
+  for (uint64_t seed : {4, 5, 6, 7}) {
+    const int n = 4, m = 2;
+    // Small policy variance: log-std -4 -> Sigma = e^-8.
+    Models md = random_models(n, m, seed, -4.0);
+    DeterministicHybrid ctrl(md.policy, md.dynamics, md.reward,
+                             DeterministicHybridOptions{5, false, 0.999, false});
+    ctrl.act(torch::randn({n}, torch::kFloat64));
+    const AdjointTrace& tr = ctrl.trace();
+    const double first_order = tr.dreturn_da0.dot(tr.sigma.cwiseProduct(tr.dreturn_da0));
+    const double mig = ctrl.diagnostics().mode_insertion_gradient;
+    EXPECT_GE(first_order, 0.0);
+    EXPECT_GT(mig, 0.0);
+    EXPECT_NEAR(mig, first_order, 1e-2 * first_order) << "seed " << seed;
+    // Theorem 1: the action is mu + Sigma * d(return)/da.
+    for (int j = 0; j < m; ++j) {
+      EXPECT_NEAR(tr.action[j], tr.mean_action[j] + std::exp(-8.0) * tr.dreturn_da0[j], 1e-12);
+    }
+  }
+}
+
+TEST(DeterministicHybrid, WithoutPolicyIsGradientStepFromZero) {
+  const int n = 3, m = 1;
+  Models md = random_models(n, m, 9);
+  DeterministicHybrid ctrl(nullptr, md.dynamics, md.reward,
+                           DeterministicHybridOptions{4, false, 0.999, false});
+  auto s0 = torch::randn({n}, torch::kFloat64);
+  const AdjointTrace& tr = ctrl.analyse(s0);
+  EXPECT_EQ(tr.actions.norm(), 0.0);
+  // mu = 0, Sigma = I: a* = d(return)/d(a_0) along the zero-action rollout.
+  torch::NoGradGuard g;
+  auto a0 = torch::zeros({m}, torch::kFloat64);
+  auto rollout = [&](const torch::Tensor& a) {
+    double total = 0;
+    auto s = s0.view({1, -1});
+    for (int t = 0; t < 4; ++t) {
+      auto at = t == 0 ? a.view({1, -1}) : torch::zeros({1, m}, torch::kFloat64);
+      total += md.reward->forward(s, at).item<double>();
+      s = md.dynamics->forward(s, at);
+    }
+    return torch::tensor(total, torch::kFloat64);
+  };
+  auto fd = testing::finite_difference_gradient(rollout, a0);
+  EXPECT_NEAR(tr.action[0], fd[0].item<double>(), 1e-6);
+}
+
+TEST(DeterministicHybrid, ExplorationDecaysAndSeedIsDeterministic) {
+  Models md = random_models(3, 1, 12);
+  auto run = [&](uint64_t seed, int64_t interactions) {
+    torch::manual_seed(seed);
+    DeterministicHybrid ctrl(md.policy, md.dynamics, md.reward, DeterministicHybridOptions{});
+    ctrl.set_interactions(interactions);
+    return ctrl.act(torch::ones({3}, torch::kFloat64))[0].item<double>();
+  };
+  EXPECT_EQ(run(5, 0), run(5, 0));
+  // After 20000 interactions the noise std is 0.999^20000 ~ 2e-9: the action is a* itself.
+  DeterministicHybrid quiet(md.policy, md.dynamics, md.reward,
+                            DeterministicHybridOptions{5, false, 0.999, false});
+  const double a_star = quiet.act(torch::ones({3}, torch::kFloat64))[0].item<double>();
+  EXPECT_NEAR(run(6, 20000), a_star, 1e-7);
+  EXPECT_GT(std::abs(run(6, 0) - a_star), 1e-4);
+}
+
+// One state, one action: s' = s (the model cannot move), r(s, a) = -|s + a - goal|. The best action at every
+// step is goal - s, so the optimal plan is constant and known.
+Models known_answer_models(double goal) {
+  Models md;
+  md.dynamics = DynamicsModel(DynamicsModelOptions{1, 1, 2, Activation::kRelu});
+  md.reward = RewardModel(RewardModelOptions{1, 1, 2});
+  torch::NoGradGuard g;
+  for (auto& p : md.dynamics->parameters())
+    p.zero_();
+  md.reward->fc1->weight.copy_(torch::tensor({{1.0, 1.0}, {-1.0, -1.0}}));
+  md.reward->fc1->bias.copy_(torch::tensor({-goal, goal}));
+  md.reward->fc2->weight.copy_(torch::eye(2));
+  md.reward->fc2->bias.zero_();
+  md.reward->fc3->weight.copy_(torch::tensor({{-1.0, -1.0}}));
+  md.reward->fc3->bias.zero_();
+  return md;
+}
+
+TEST(StochasticHybrid, MppiConvergesToKnownOptimum) {
+  torch::manual_seed(0);
+  Models md = known_answer_models(0.5);
+  // White noise (filter 0): with low-pass-filtered noise the reward-to-go weights of step 0 also reward
+  // noise that helps the later, less-converged plan entries, which biases a_0 (a property of MPPI's
+  // correlated sampling, not of the weights), so the fixed point is only near the optimum.
+  StochasticHybrid mppi(std::make_shared<FilteredNoiseSampler>(0.3, 0.0), md.dynamics, md.reward,
+                        StochasticHybridOptions{5, 256, 0.01, true, 1e-5}, nullptr, "mppi");
+  const auto s0 = torch::tensor({-0.2f});
+  // Sampling noise makes single actions scatter; their mean over the converged calls is the optimum.
+  double sum = 0;
+  for (int i = 0; i < 150; ++i) {
+    const double a = mppi.act(s0)[0].item<double>();
+    if (i >= 50) sum += a;
+  }
+  EXPECT_NEAR(sum / 100, 0.7, 0.04);  // goal - s = 0.5 - (-0.2)
+}
+
+TEST(StochasticHybrid, PolicySamplerFindsKnownOptimum) {
+  torch::manual_seed(1);
+  Models md = known_answer_models(-0.3);
+  // A broad policy centred at 0 (std e^0.5): the model must pull the plan to goal - s = -0.6.
+  auto policy = GaussianPolicy(GaussianPolicyOptions{1, 1, {8}, Activation::kSin});
+  {
+    torch::NoGradGuard g;
+    policy->log_std_layers[1]->as<torch::nn::Linear>()->weight.zero_();
+    policy->log_std_layers[1]->as<torch::nn::Linear>()->bias.fill_(0.5);
+  }
+  // Horizon 1: with longer horizons the later steps' random actions add noise to every sample's
+  // reward-to-go, and a single call (the policy sampler ignores the warm start) would be noisy.
+  StochasticHybrid hybrid(std::make_shared<PolicySampler>(policy), md.dynamics, md.reward,
+                          StochasticHybridOptions{1, 400, 0.01, true, 1e-5}, policy);
+  const double a = hybrid.act(torch::tensor({0.3f}))[0].item<double>();
+  EXPECT_NEAR(a, -0.6, 0.05);
+}
+
+TEST(StochasticHybrid, WeightsAreFiniteNormalisedAndFollowTheFormula) {
+  torch::manual_seed(2);
+  Models md = random_models(3, 2, 21);
+  const double lambda = 0.5;
+  StochasticHybrid hybrid(std::make_shared<PolicySampler>(md.policy), md.dynamics, md.reward,
+                          StochasticHybridOptions{6, 30, lambda, true, 0.0}, md.policy);
+  const auto s0 = torch::randn({3}, torch::kFloat64);
+  hybrid.act(s0);
+  const auto w = hybrid.weights().clone();
+  ASSERT_EQ(w.sizes(), (std::vector<int64_t>{6, 30}));
+  EXPECT_TRUE(torch::isfinite(w).all().item<bool>());
+  EXPECT_TRUE(torch::allclose(w.sum(1), torch::ones({6}, torch::kFloat64)));
+  // Recompute the weights from the stored samples: w_t^k proportional to exp(J_t^k / lambda) p(v_t^k), with
+  // J_t^k the predicted reward-to-go along sample k's rollout.
+  torch::NoGradGuard g;
+  {
+    auto V = hybrid.samples();  // [H, K, m]
+    auto s = s0.unsqueeze(0).expand({30, 3});
+    std::vector<torch::Tensor> r;
+    for (int t = 0; t < 6; ++t) {
+      r.push_back(md.reward->forward(s, V[t]).squeeze(-1));
+      s = md.dynamics->forward(s, V[t]);
+    }
+    auto J = torch::stack(r).flip(0).cumsum(0).flip(0);
+    auto expected = torch::softmax(J / lambda + hybrid.log_density(), 1);
+    EXPECT_TRUE(torch::allclose(w, expected, 1e-9, 1e-12));
+    // The log-density is the policy's, with the tanh correction.
+    auto lp = md.policy->log_prob(s0.unsqueeze(0).expand({30, 3}), V[0]).squeeze(-1);
+    EXPECT_TRUE(torch::allclose(hybrid.log_density()[0], lp, 1e-6, 1e-6));
+  }
+  // Extreme rewards do not overflow: scale the reward model up by 1e6.
+  md.reward->fc3->weight.mul_(1e6);
+  hybrid.act(torch::randn({3}, torch::kFloat64));
+  EXPECT_TRUE(torch::isfinite(hybrid.weights()).all().item<bool>());
+  EXPECT_TRUE(torch::allclose(hybrid.weights().sum(1), torch::ones({6}, torch::kFloat64)));
+}
+
+TEST(StochasticHybrid, InfiniteTemperatureGivesMeanPerturbationAndPlanShifts) {
+  torch::manual_seed(3);
+  Models md = random_models(2, 1, 31);
+  StochasticHybridOptions o{4, 50, 1e12, false, 1e-5};
+  StochasticHybrid mppi(std::make_shared<FilteredNoiseSampler>(0.3, 0.5), md.dynamics, md.reward, o, nullptr,
+                        "mppi");
+  auto s = torch::randn({2}, torch::kFloat64);
+  mppi.act(s);
+  const auto plan1 = mppi.plan().clone();
+  mppi.act(s);
+  // Second call: the plan it started from is plan1 shifted one step earlier with a zero appended.
+  auto shifted = torch::cat({plan1.narrow(0, 1, 3), torch::zeros({1, 1}, torch::kFloat64)});
+  EXPECT_TRUE(torch::allclose(mppi.weights(), torch::full({4, 50}, 1.0 / 50, torch::kFloat64)));
+  auto expected = shifted + (mppi.samples() - shifted.unsqueeze(1)).mean(1);
+  EXPECT_TRUE(torch::allclose(mppi.plan(), expected, 1e-12, 1e-12)) << mppi.plan() << expected;
+  // With the density in the weights, lambda -> infinity leaves w proportional to p(v).
+  StochasticHybrid dens(std::make_shared<FilteredNoiseSampler>(0.3, 0.5), md.dynamics, md.reward,
+                        StochasticHybridOptions{4, 50, 1e12, true, 0.0}, nullptr, "mppi");
+  dens.act(s);
+  EXPECT_TRUE(torch::allclose(dens.weights(), torch::softmax(dens.log_density(), 1), 1e-9, 1e-12));
+  // reset() clears the warm start.
+  dens.reset();
+  EXPECT_EQ(dens.plan().abs().sum().item<double>(), 0.0);
+}
+
+TEST(StochasticHybrid, SameSeedSameActions) {
+  Models md = random_models(3, 1, 41);
+  auto run = [&] {
+    torch::manual_seed(77);
+    StochasticHybrid h(std::make_shared<PolicySampler>(md.policy), md.dynamics, md.reward,
+                       StochasticHybridOptions{}, md.policy);
+    std::vector<double> out;
+    auto s = torch::ones({3}, torch::kFloat64);
+    for (int i = 0; i < 5; ++i)
+      out.push_back(h.act(s)[0].item<double>());
+    return out;
+  };
+  EXPECT_EQ(run(), run());
+}
+
+TEST(Controller, NonFiniteModelFallsBackToPolicyAndCounts) {
+  Models md = random_models(3, 1, 51);
+  {
+    torch::NoGradGuard g;
+    md.dynamics->fc2->bias.fill_(std::numeric_limits<double>::quiet_NaN());
+  }
+  auto s = torch::randn({3}, torch::kFloat64);
+  StochasticHybrid stoch(std::make_shared<PolicySampler>(md.policy), md.dynamics, md.reward,
+                         StochasticHybridOptions{}, md.policy);
+  DeterministicHybrid det(md.policy, md.dynamics, md.reward, DeterministicHybridOptions{});
+  const auto policy_action = md.policy->mean_action(s.unsqueeze(0)).squeeze(0).detach();
+  for (Controller* c : std::initializer_list<Controller*>{&stoch, &det}) {
+    auto a = c->act(s);
+    EXPECT_TRUE(torch::isfinite(a).all().item<bool>()) << c->name();
+    EXPECT_TRUE(torch::allclose(a, policy_action)) << c->name();
+    EXPECT_TRUE(c->diagnostics().fell_back);
+    c->act(s);
+    EXPECT_EQ(c->diagnostics().fallbacks, 2);
+  }
+  // No policy to fall back on: the zero action.
+  DeterministicHybrid mpc(nullptr, md.dynamics, md.reward, DeterministicHybridOptions{});
+  EXPECT_EQ(mpc.act(s).abs().sum().item<double>(), 0.0);
+  // A NaN policy falls back to zero too.
+  {
+    torch::NoGradGuard g;
+    for (auto& p : md.policy->parameters())
+      p.fill_(std::numeric_limits<double>::quiet_NaN());
+  }
+  PolicyController pc(md.policy, true);
+  EXPECT_EQ(pc.act(s).abs().sum().item<double>(), 0.0);
+}
+
+}  // namespace
+}  // namespace hlt
