@@ -14,8 +14,17 @@ namespace {
 constexpr int kShift = 4;
 constexpr double kSubPixel = 1 << kShift;
 
+// Far outside any image, so OpenCV clips it away; also where non-finite coordinates go.
+constexpr double kFar = 1e6;
+
+int fixed(double v) {
+  if (!(v > -kFar)) v = -kFar;  // also catches NaN
+  if (v > kFar) v = kFar;
+  return static_cast<int>(std::lround(v * kSubPixel));
+}
+
 cv::Point fixed_point(const cv::Point2d& p) {
-  return {static_cast<int>(std::lround(p.x * kSubPixel)), static_cast<int>(std::lround(p.y * kSubPixel))};
+  return {fixed(p.x), fixed(p.y)};
 }
 }  // namespace
 
