@@ -98,7 +98,7 @@ cv::Mat Acrobot::render(int width, int height) const {
   view.disc(0, 0, 0.05, colours::kJoint);
   view.disc(x1, z1, 0.05, colours::kJoint);
   view.line(0, -2.1, 0.8 * last_torque_ / kMaxTorque, -2.1, colours::kBody, 6);  // the elbow torque
-  view.caption(fmt::format("acrobot  t={}  tip height={:.2f}", elapsed_steps(), tip_height()));
+  view.caption(fmt::format("t={}  tip height={:.2f}", elapsed_steps(), tip_height()));
   return view.image();
 }
 

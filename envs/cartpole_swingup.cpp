@@ -85,8 +85,7 @@ cv::Mat CartPoleSwingup::render(int width, int height) const {
   for (double x : {-kRailLimit, kRailLimit})
     view.line(x, -0.12, x, 0.12, colours::kGround, 2);
   bullet::draw_side(view, *robot_);
-  view.caption(fmt::format("cartpole_swingup  t={}  x={:.2f}  theta={:.2f}", elapsed_steps(),
-                           robot_->joint_position(kCart),
+  view.caption(fmt::format("t={}  x={:.2f}  theta={:.2f}", elapsed_steps(), robot_->joint_position(kCart),
                            std::remainder(robot_->joint_position(kPole), 6.283185307179586)));
   return view.image();
 }

@@ -72,7 +72,7 @@ cv::Mat Pendulum::render(int width, int height) const {
   // The applied torque as a bar along the bottom edge: right for positive (counter-clockwise) torque.
   const double bar_z = -1.2;
   view.line(0, bar_z, 0.5 * last_torque_ / kMaxTorque, bar_z, colours::kBody, 6);
-  view.caption(fmt::format("pendulum  t={}  theta={:.2f}", elapsed_steps(), wrap_angle(theta_)));
+  view.caption(fmt::format("t={}  theta={:.2f}", elapsed_steps(), wrap_angle(theta_)));
   return view.image();
 }
 

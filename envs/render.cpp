@@ -63,7 +63,10 @@ void SideView::rectangle(double x0, double z0, double x1, double z1, const cv::S
 
 void SideView::caption(const std::string& text) {
   ++caption_lines_;
-  cv::putText(image_, text, cv::Point(8, 8 + 18 * caption_lines_), cv::FONT_HERSHEY_SIMPLEX, 0.5,
+  // Readable from thumbnails (image strips) up to full-size frames.
+  const double font = std::clamp(image_.cols / 960.0, 0.3, 0.6);
+  const int line = static_cast<int>(std::lround(36 * font));
+  cv::putText(image_, text, cv::Point(6, 4 + line * caption_lines_), cv::FONT_HERSHEY_SIMPLEX, font,
               colours::kText, 1, cv::LINE_AA);
 }
 
