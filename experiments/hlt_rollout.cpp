@@ -138,6 +138,11 @@ int run(const Options& o) {
   check(o.strip.empty() || extension(o.strip) == "png", "--strip {}: use a .png file name", o.strip);
   check(o.strip_frames >= 1 && o.record_episodes >= 0,
         "--strip-frames must be >= 1 and --record-episodes >= 0");
+  for (const std::string* out : {&o.csv, &o.video, &o.strip}) {
+    const auto slash = out->find_last_of('/');
+    if (!out->empty() && slash != std::string::npos && slash > 0)
+      ensure_writable_directory(out->substr(0, slash));
+  }
   const bool recording = (!o.video.empty() || !o.strip.empty()) && o.record_episodes > 0;
   fmt::print("env {} (observation {}, action {}, limit {} steps{}), policy {}, seed {}\n", o.env,
              env->observation_dim(), env->action_dim(), env->max_episode_steps(),
