@@ -381,6 +381,11 @@ void Robot::refresh_kinematics() {
   local_origin.resize(num_links() + 1);
   body_->forwardKinematics(world_to_local, local_origin);
   body_->updateCollisionObjectWorldTransforms(world_to_local, local_origin);
+  // Bullet takes a collider whose bounding box overflowed (a state gone non-finite) out of the simulation for
+  // good; a state set from outside starts afresh, so bring such colliders back.
+  for (auto& c : colliders_) {
+    if (c->getActivationState() == DISABLE_SIMULATION) c->forceActivationState(ACTIVE_TAG);
+  }
 }
 
 }  // namespace hlt::bullet

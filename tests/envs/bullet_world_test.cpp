@@ -197,6 +197,23 @@ TEST(BulletWorld, SnapshotsWithContacts) {
   EXPECT_LT(worst, 1e-2);
 }
 
+TEST(BulletWorld, RecoversFromANonFiniteState) {
+  // Bullet removes a collider whose bounding box overflows from the simulation; restoring a good state must
+  // bring it back, or the ball would fall through the ground afterwards.
+  World world;
+  world.add_ground(0.8, 0.5);
+  Robot& b = world.add_robot(ball(0.5, true));
+  const std::vector<double> good = world.save_state();
+  b.set_base_state({0, 0, 0.5}, Eigen::Quaterniond::Identity(), {1e300, 0, 0}, {0, 0, 0});
+  world.step(0.0165);
+  world.step(0.0165);
+  EXPECT_FALSE(world.state_is_finite());
+  world.restore_state(good);
+  for (int i = 0; i < 200; ++i)
+    world.step(0.0165, 4);
+  EXPECT_NEAR(b.base_position().z(), 0.1, 0.01);
+}
+
 TEST(BulletWorld, RejectsBadSpecs) {
   World world;
   RobotSpec s = rod();
