@@ -1,0 +1,70 @@
+// World: a double-precision Bullet btMultiBodyDynamicsWorld set up with the engine settings PyBullet's gym
+// environments run with (docs/ENVIRONMENTS.md), owning the robots and ground built in it.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "envs/bullet/robot.h"
+
+class btBroadphaseInterface;
+class btCollisionConfiguration;
+class btCollisionDispatcher;
+class btCollisionObject;
+class btCollisionShape;
+class btMultiBodyConstraintSolver;
+
+namespace hlt::bullet {
+
+struct WorldSettings {
+  double gravity_z = -9.8;
+  int solver_iterations = 5;
+  double contact_erp = 0.9;
+  double friction_erp = 0.2;
+  double linear_slop = 1e-5;
+  double warmstarting_factor = 0.1;
+  double residual_threshold = 1e-7;
+  bool deterministic_overlapping_pairs = true;
+};
+
+class World {
+ public:
+  explicit World(const WorldSettings& settings = {});
+  ~World();
+  World(const World&) = delete;
+  World& operator=(const World&) = delete;
+
+  // Builds `spec` in this world; the reference stays valid for the world's lifetime.
+  Robot& add_robot(RobotSpec spec);
+  // A static plane z = 0.
+  void add_ground(double friction, double restitution);
+
+  // Advances `dt` seconds in `substeps` equal sub-steps. Each robot's pending joint forces act during every
+  // sub-step (as a torque set before PyBullet's stepSimulation does) and are cleared afterwards.
+  void step(double dt, int substeps = 1);
+
+  // All robots' states, concatenated. Exact for worlds without contacts: the next steps are reproduced bit
+  // for bit. Contact caches (persistent manifolds) are not part of it, see has_contacts().
+  std::vector<double> save_state() const;
+  void restore_state(const std::vector<double>& state);
+  bool state_is_finite() const;
+  // Whether anything in this world can collide (then a restored state may differ in the contact points Bullet
+  // keeps between steps).
+  bool has_contacts() const;
+
+  btMultiBodyDynamicsWorld& bullet() { return *world_; }
+  const btMultiBodyDynamicsWorld& bullet() const { return *world_; }
+  const std::vector<std::unique_ptr<Robot>>& robots() const { return robots_; }
+
+ private:
+  std::unique_ptr<btCollisionConfiguration> collision_config_;
+  std::unique_ptr<btCollisionDispatcher> dispatcher_;
+  std::unique_ptr<btBroadphaseInterface> broadphase_;
+  std::unique_ptr<btMultiBodyConstraintSolver> solver_;
+  std::unique_ptr<btMultiBodyDynamicsWorld> world_;
+  std::vector<std::unique_ptr<Robot>> robots_;
+  std::vector<std::unique_ptr<btCollisionShape>> static_shapes_;
+  std::vector<std::unique_ptr<btCollisionObject>> static_objects_;
+};
+
+}  // namespace hlt::bullet

@@ -1,0 +1,120 @@
+#include "envs/rollout.h"
+
+#include <cmath>
+#include <cstdlib>
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "hlt/util/error.h"
+
+namespace hlt {
+
+namespace {
+
+const char* const kPolicyForms = "zero, random, constant:V or constant:V1,V2,...";
+
+class ConstantPolicy : public PolicySource {
+ public:
+  ConstantPolicy(Eigen::VectorXd action, std::string label)
+      : action_(std::move(action)), label_(std::move(label)) {}
+  std::string describe() const override { return label_; }
+  Eigen::VectorXd act(const Eigen::VectorXd&) override { return action_; }
+
+ private:
+  Eigen::VectorXd action_;
+  std::string label_;
+};
+
+class UniformPolicy : public PolicySource {
+ public:
+  UniformPolicy(int dim, uint64_t seed) : dim_(dim), rng_(seed) {}
+  std::string describe() const override { return "uniform random in [-1, 1]"; }
+  Eigen::VectorXd act(const Eigen::VectorXd&) override {
+    Eigen::VectorXd a(dim_);
+    for (int i = 0; i < dim_; ++i)
+      a[i] = dist_(rng_);
+    return a;
+  }
+
+ private:
+  int dim_;
+  std::mt19937_64 rng_;
+  std::uniform_real_distribution<double> dist_{-1.0, 1.0};
+};
+
+double parse_number(const std::string& text, const std::string& spec) {
+  const char* begin = text.c_str();
+  char* end = nullptr;
+  const double v = std::strtod(begin, &end);
+  check(!text.empty() && end == begin + text.size() && std::isfinite(v),
+        "policy '{}': '{}' is not a finite number (forms: {})", spec, text, kPolicyForms);
+  return v;
+}
+
+}  // namespace
+
+std::unique_ptr<PolicySource> make_simple_policy(const std::string& spec, int action_dim, uint64_t seed) {
+  check(action_dim > 0, "policy '{}': action size must be positive", spec);
+  if (spec == "zero") return std::make_unique<ConstantPolicy>(Eigen::VectorXd::Zero(action_dim), "zero");
+  if (spec == "random") return std::make_unique<UniformPolicy>(action_dim, seed);
+  const std::string prefix = "constant:";
+  if (spec.rfind(prefix, 0) == 0) {
+    std::vector<double> values;
+    std::stringstream ss(spec.substr(prefix.size()));
+    std::string item;
+    while (std::getline(ss, item, ','))
+      values.push_back(parse_number(item, spec));
+    check(!values.empty(), "policy '{}': no value given (forms: {})", spec, kPolicyForms);
+    Eigen::VectorXd a(action_dim);
+    if (values.size() == 1) {
+      a.setConstant(values[0]);
+    } else {
+      check(static_cast<int>(values.size()) == action_dim, "policy '{}': {} values given, the action has {}",
+            spec, values.size(), action_dim);
+      for (int i = 0; i < action_dim; ++i)
+        a[i] = values[i];
+    }
+    return std::make_unique<ConstantPolicy>(a, spec);
+  }
+  throw Error(fmt::format("unknown policy '{}'; accepted: {}", spec, kPolicyForms));
+}
+
+EpisodeStats run_episode(Env& env, PolicySource& policy, std::optional<uint64_t> seed,
+                         const std::function<void(const Transition&)>& on_step,
+                         const std::function<void()>& on_reset) {
+  Eigen::VectorXd obs = env.reset(seed);
+  if (on_reset) on_reset();
+  EpisodeStats stats;
+  for (;;) {
+    const Eigen::VectorXd action = policy.act(obs);
+    const StepResult r = env.step(action);
+    if (on_step) on_step(Transition{stats.length, obs, action, r});
+    stats.episode_return += r.reward;
+    ++stats.length;
+    if (r.done()) {
+      stats.terminated = r.terminated;
+      stats.truncated = r.truncated;
+      stats.failure = r.failure;
+      return stats;
+    }
+    obs = r.observation;
+  }
+}
+
+ReturnSummary summarize(const std::vector<EpisodeStats>& episodes) {
+  ReturnSummary s;
+  if (episodes.empty()) return s;
+  const double n = static_cast<double>(episodes.size());
+  for (const auto& e : episodes) {
+    s.mean_return += e.episode_return / n;
+    s.mean_length += e.length / n;
+  }
+  double var = 0;
+  for (const auto& e : episodes)
+    var += (e.episode_return - s.mean_return) * (e.episode_return - s.mean_return) / n;
+  s.std_return = std::sqrt(var);
+  return s;
+}
+
+}  // namespace hlt

@@ -1,0 +1,59 @@
+// Running episodes: the episode loop shared by tools, and the simple action sources (zero, constant, uniform
+// random) that need no trained policy.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "envs/env.h"
+
+namespace hlt {
+
+// Chooses actions in [-1, 1]^m from observations. Tools plug learned policies in through this interface.
+class PolicySource {
+ public:
+  virtual ~PolicySource() = default;
+  virtual std::string describe() const = 0;
+  virtual Eigen::VectorXd act(const Eigen::VectorXd& observation) = 0;
+};
+
+// "zero", "random" (uniform in [-1, 1], generator seeded with `seed`), "constant:V" (every component V) or
+// "constant:V1,V2,..." (one value per action component). Throws hlt::Error naming the accepted forms.
+std::unique_ptr<PolicySource> make_simple_policy(const std::string& spec, int action_dim, uint64_t seed);
+
+struct EpisodeStats {
+  double episode_return = 0.0;
+  int length = 0;
+  bool terminated = false;
+  bool truncated = false;
+  std::string failure;  // set when the simulation failed
+};
+
+// One step of an episode as the loop saw it: the observation the action was chosen from, the action and the
+// environment's answer.
+struct Transition {
+  int step;
+  const Eigen::VectorXd& observation;
+  const Eigen::VectorXd& action;
+  const StepResult& result;
+};
+
+// Resets `env` (with `seed` if given), then steps it with `policy` until the episode ends. `on_step`, if set,
+// sees every transition; `on_reset`, if set, is called after the reset (e.g. to render the first frame).
+EpisodeStats run_episode(Env& env, PolicySource& policy, std::optional<uint64_t> seed,
+                         const std::function<void(const Transition&)>& on_step = {},
+                         const std::function<void()>& on_reset = {});
+
+struct ReturnSummary {
+  double mean_return = 0.0;
+  double std_return = 0.0;  // population standard deviation
+  double mean_length = 0.0;
+};
+ReturnSummary summarize(const std::vector<EpisodeStats>& episodes);
+
+}  // namespace hlt

@@ -1,0 +1,254 @@
+// hlt_rollout: runs a registered environment with a simple or saved policy for N episodes and reports the
+// returns; optionally writes the trajectory as CSV and the frames as a video or an image strip.
+//
+//   hlt_rollout --env cartpole_swingup --policy zero|random|constant:0.5|checkpoint:PATH --episodes 10
+//               --seed 0 [--frame-skip K] [--csv traj.csv] [--video out.mp4] [--strip out.png]
+#include <algorithm>
+#include <cmath>
+#include <iostream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <CLI/CLI.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "envs/env.h"
+#include "envs/registry.h"
+#include "envs/rollout.h"
+#include "hlt/util/error.h"
+#include "hlt/util/files.h"
+#include "hlt/util/random.h"
+
+namespace hlt {
+namespace {
+
+// The policy named on the command line. Learned policies are not wired in yet: "checkpoint:PATH" is the place
+// where the agents' torch policy plugs in (load it here and wrap it in a PolicySource).
+std::unique_ptr<PolicySource> make_policy(const std::string& spec, const Env& env, uint64_t seed) {
+  const std::string checkpoint = "checkpoint:";
+  if (spec.rfind(checkpoint, 0) == 0) {
+    throw Error(fmt::format(
+        "--policy {}: running a saved policy is not yet supported by hlt_rollout (the agents that write "
+        "checkpoints are not merged yet); use zero, random or constant:V",
+        spec));
+  }
+  return make_simple_policy(spec, env.action_dim(), seed);
+}
+
+std::string extension(const std::string& path) {
+  const auto dot = path.find_last_of('.');
+  const auto slash = path.find_last_of('/');
+  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
+  std::string ext = path.substr(dot + 1);
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext;
+}
+
+std::string replace_extension(const std::string& path, const std::string& ext) {
+  const std::string old = extension(path);
+  return (old.empty() ? path : path.substr(0, path.size() - old.size() - 1)) + "." + ext;
+}
+
+// Up to `count` frames evenly spread over `frames`, side by side, in rows of at most 8.
+cv::Mat image_strip(const std::vector<cv::Mat>& frames, int count) {
+  check(!frames.empty(), "no frames were rendered");
+  count = std::max(1, std::min<int>(count, static_cast<int>(frames.size())));
+  std::vector<cv::Mat> picked;
+  for (int i = 0; i < count; ++i) {
+    const size_t idx = count == 1 ? 0 : i * (frames.size() - 1) / (count - 1);
+    picked.push_back(frames[idx]);
+  }
+  const int per_row = std::min(count, 8);
+  std::vector<cv::Mat> rows;
+  for (int start = 0; start < count; start += per_row) {
+    std::vector<cv::Mat> row(picked.begin() + start, picked.begin() + std::min(count, start + per_row));
+    while (static_cast<int>(row.size()) < per_row)
+      row.push_back(cv::Mat(picked[0].size(), picked[0].type(), 255.0));
+    cv::Mat joined;
+    cv::hconcat(row, joined);
+    rows.push_back(joined);
+  }
+  cv::Mat out;
+  cv::vconcat(rows, out);
+  return out;
+}
+
+void write_png(const std::string& path, const cv::Mat& image) {
+  write_atomic_with(path, [&](const std::string& tmp) {
+    // cv::imwrite picks the format from the name, so the temporary name must keep the extension.
+    const std::string named = tmp + ".png";
+    check(cv::imwrite(named, image), "could not write the image {}", path);
+    check(std::rename(named.c_str(), tmp.c_str()) == 0, "could not write the image {}", path);
+  });
+}
+
+// Writes `frames` as a video at `fps`. Returns false (and writes nothing) when OpenCV has no encoder for the
+// container.
+bool write_video(const std::string& path, const std::vector<cv::Mat>& frames, double fps) {
+  const std::string ext = extension(path);
+  int fourcc = 0;
+  if (ext == "mp4") {
+    fourcc = cv::VideoWriter::fourcc('m', 'p', '4', 'v');
+  } else if (ext == "avi") {
+    fourcc = cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
+  } else {
+    throw Error(fmt::format("--video {}: use a .mp4 or .avi file name", path));
+  }
+  cv::VideoWriter writer(path, fourcc, fps, frames.front().size());
+  if (!writer.isOpened()) return false;
+  for (const cv::Mat& f : frames)
+    writer.write(f);
+  writer.release();
+  return true;
+}
+
+struct Options {
+  std::string env;
+  std::string policy = "zero";
+  int episodes = 1;
+  uint64_t seed = 0;
+  int frame_skip = 1;
+  std::string csv;
+  std::string video;
+  std::string strip;
+  int strip_frames = 8;
+  int record_episodes = 1;
+  int width = 480;
+  int height = 360;
+};
+
+int run(const Options& o) {
+  std::unique_ptr<Env> env = make_env(o.env);
+  if (o.frame_skip != 1) env = std::make_unique<FrameSkip>(std::move(env), o.frame_skip);
+  check(o.episodes >= 1, "--episodes must be at least 1, got {}", o.episodes);
+  check(o.width >= 16 && o.height >= 16, "--width and --height must be at least 16");
+  // The policy's randomness is its own stream, so changing the policy never changes the environment's starts.
+  std::unique_ptr<PolicySource> policy = make_policy(o.policy, *env, derive_seed(o.seed, 1));
+  // Output names are checked before any work is done.
+  if (!o.video.empty()) {
+    const std::string ext = extension(o.video);
+    check(ext == "mp4" || ext == "avi", "--video {}: use a .mp4 or .avi file name (or --strip for a PNG)",
+          o.video);
+  }
+  check(o.strip.empty() || extension(o.strip) == "png", "--strip {}: use a .png file name", o.strip);
+  check(o.strip_frames >= 1 && o.record_episodes >= 0,
+        "--strip-frames must be >= 1 and --record-episodes >= 0");
+  for (const std::string* out : {&o.csv, &o.video, &o.strip}) {
+    const auto slash = out->find_last_of('/');
+    if (!out->empty() && slash != std::string::npos && slash > 0)
+      ensure_writable_directory(out->substr(0, slash));
+  }
+  const bool recording = (!o.video.empty() || !o.strip.empty()) && o.record_episodes > 0;
+  fmt::print("env {} (observation {}, action {}, limit {} steps{}), policy {}, seed {}\n", o.env,
+             env->observation_dim(), env->action_dim(), env->max_episode_steps(),
+             o.frame_skip != 1 ? fmt::format(", frame skip {}", o.frame_skip) : "", policy->describe(),
+             o.seed);
+
+  std::ostringstream csv;
+  if (!o.csv.empty()) {
+    csv << "episode,step";
+    for (int i = 0; i < env->observation_dim(); ++i)
+      csv << ",obs_" << i;
+    for (int i = 0; i < env->action_dim(); ++i)
+      csv << ",action_" << i;
+    csv << ",reward,done,truncated\n";
+  }
+  std::vector<cv::Mat> frames;
+  std::vector<EpisodeStats> episodes;
+  for (int ep = 0; ep < o.episodes; ++ep) {
+    const bool record = recording && ep < o.record_episodes;
+    auto on_reset = [&]() {
+      if (record) frames.push_back(env->render(o.width, o.height));
+    };
+    auto on_step = [&](const Transition& t) {
+      if (!o.csv.empty()) {
+        csv << ep << ',' << t.step;
+        for (Eigen::Index i = 0; i < t.observation.size(); ++i)
+          csv << fmt::format(",{:.17g}", t.observation[i]);
+        for (Eigen::Index i = 0; i < t.action.size(); ++i)
+          csv << fmt::format(",{:.17g}", t.action[i]);
+        csv << fmt::format(",{:.17g},{},{}\n", t.result.reward, t.result.done() ? 1 : 0,
+                           t.result.truncated ? 1 : 0);
+      }
+      if (record) frames.push_back(env->render(o.width, o.height));
+    };
+    // The first episode starts from the seed; later ones continue the environment's generator.
+    const EpisodeStats s = run_episode(
+        *env, *policy, ep == 0 ? std::optional<uint64_t>(o.seed) : std::nullopt, on_step, on_reset);
+    std::string note = s.terminated ? " (terminated)" : "";
+    if (!s.failure.empty()) note = " (simulation failed: " + s.failure + ")";
+    fmt::print("episode {}: return {:.1f} length {}{}\n", ep, s.episode_return, s.length, note);
+    episodes.push_back(s);
+  }
+  const ReturnSummary sum = summarize(episodes);
+  fmt::print("mean return {:.1f} std {:.1f} mean length {:.1f} over {} episodes\n", sum.mean_return,
+             sum.std_return, sum.mean_length, episodes.size());
+
+  if (!o.csv.empty()) {
+    write_file_atomic(o.csv, csv.str());
+    fmt::print("wrote {}\n", o.csv);
+  }
+  if (!o.video.empty() && !frames.empty()) {
+    const double fps = std::max(1.0, std::round(1.0 / env->dt()));
+    if (write_video(o.video, frames, fps)) {
+      fmt::print("wrote {} ({} frames at {} fps)\n", o.video, frames.size(), fps);
+    } else {
+      const std::string fallback = replace_extension(o.video, "png");
+      write_png(fallback, image_strip(frames, o.strip_frames));
+      fmt::print(
+          stderr,
+          "warning: OpenCV has no encoder for {} here; wrote an image strip of {} frames to {} instead\n",
+          o.video, std::min<size_t>(o.strip_frames, frames.size()), fallback);
+    }
+  }
+  if (!o.strip.empty() && !frames.empty()) {
+    write_png(o.strip, image_strip(frames, o.strip_frames));
+    fmt::print("wrote {}\n", o.strip);
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace hlt
+
+int main(int argc, char** argv) {
+  hlt::Options o;
+  CLI::App app{"Runs a registered environment with a given policy and reports episode returns."};
+  bool list = false;
+  app.add_flag("--list", list, "List the registered environments and exit");
+  app.add_option("--env", o.env, "Environment name (see --list)");
+  app.add_option("--policy", o.policy, "zero | random | constant:V[,V2,...] | checkpoint:PATH")
+      ->capture_default_str();
+  app.add_option("--episodes", o.episodes, "Number of episodes")->capture_default_str();
+  app.add_option("--seed", o.seed, "Seed of the first reset (and of the random policy)")
+      ->capture_default_str();
+  app.add_option("--frame-skip", o.frame_skip, "Repeat each action K simulator steps")->capture_default_str();
+  app.add_option("--csv", o.csv,
+                 "Write every step (observation, action, reward, done, truncated) to this CSV");
+  app.add_option("--video", o.video, "Write the recorded episodes as a video (.mp4 or .avi)");
+  app.add_option("--strip", o.strip, "Write evenly spaced frames of the recorded episodes as one PNG");
+  app.add_option("--strip-frames", o.strip_frames, "Frames in the image strip")->capture_default_str();
+  app.add_option("--record-episodes", o.record_episodes, "How many episodes, from the first, to record")
+      ->capture_default_str();
+  app.add_option("--width", o.width, "Frame width in pixels")->capture_default_str();
+  app.add_option("--height", o.height, "Frame height in pixels")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  try {
+    if (list) {
+      for (const auto& n : hlt::env_names())
+        std::cout << n << "\n";
+      return 0;
+    }
+    hlt::check(!o.env.empty(), "--env is required; known environments: {}",
+               fmt::join(hlt::env_names(), ", "));
+    return hlt::run(o);
+  } catch (const hlt::Error& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 1;
+  }
+}
