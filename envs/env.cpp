@@ -1,7 +1,6 @@
 #include "envs/env.h"
 
 #include <cmath>
-#include <sstream>
 
 #include "hlt/util/error.h"
 
@@ -43,20 +42,18 @@ StepResult Env::step(const Eigen::VectorXd& action) {
 EnvState Env::save_state() const {
   EnvState s;
   s.sim = save_sim();
-  std::ostringstream ss;
-  ss << rng_;
-  s.rng = ss.str();
+  s.rng = rng_;
   s.elapsed_steps = elapsed_;
   s.needs_reset = needs_reset_;
   s.last_observation = last_observation_;
+  save_wrapped(s);
   return s;
 }
 
 void Env::restore_state(const EnvState& s) {
   restore_sim(s.sim);
-  std::istringstream ss(s.rng);
-  ss >> rng_;
-  check(!ss.fail(), "{}: corrupt generator state in snapshot", name());
+  restore_wrapped(s);
+  rng_ = s.rng;
   elapsed_ = s.elapsed_steps;
   needs_reset_ = s.needs_reset;
   last_observation_ = s.last_observation;
@@ -87,42 +84,11 @@ StepResult FrameSkip::step_impl(const Eigen::VectorXd& action) {
   return total;
 }
 
-std::vector<double> FrameSkip::save_sim() const {
-  // The inner snapshot travels inside the outer one, flattened:
-  // [n_sim, sim..., elapsed, needs_reset, n_obs, obs..., generator state as character codes...].
-  const EnvState s = inner_->save_state();
-  std::vector<double> out;
-  out.push_back(static_cast<double>(s.sim.size()));
-  out.insert(out.end(), s.sim.begin(), s.sim.end());
-  out.push_back(s.elapsed_steps);
-  out.push_back(s.needs_reset ? 1.0 : 0.0);
-  out.push_back(static_cast<double>(s.last_observation.size()));
-  for (Eigen::Index i = 0; i < s.last_observation.size(); ++i)
-    out.push_back(s.last_observation[i]);
-  for (unsigned char c : s.rng)
-    out.push_back(c);
-  return out;
-}
+void FrameSkip::save_wrapped(EnvState& state) const { state.wrapped = {inner_->save_state()}; }
 
-void FrameSkip::restore_sim(const std::vector<double>& v) {
-  EnvState s;
-  size_t i = 0;
-  auto next = [&]() {
-    check(i < v.size(), "{}: truncated frame-skip snapshot", name());
-    return v[i++];
-  };
-  const size_t n_sim = static_cast<size_t>(next());
-  for (size_t j = 0; j < n_sim; ++j)
-    s.sim.push_back(next());
-  s.elapsed_steps = static_cast<int>(next());
-  s.needs_reset = next() != 0.0;
-  const size_t n_obs = static_cast<size_t>(next());
-  s.last_observation.resize(n_obs);
-  for (size_t j = 0; j < n_obs; ++j)
-    s.last_observation[j] = next();
-  while (i < v.size())
-    s.rng.push_back(static_cast<char>(v[i++]));
-  inner_->restore_state(s);
+void FrameSkip::restore_wrapped(const EnvState& state) {
+  check(state.wrapped.size() == 1, "{}: snapshot does not hold the wrapped environment", name());
+  inner_->restore_state(state.wrapped.front());
 }
 
 }  // namespace hlt

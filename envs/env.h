@@ -30,10 +30,11 @@ struct StepResult {
 // A snapshot of an environment: simulator state, random generator and step counter.
 struct EnvState {
   std::vector<double> sim;
-  std::string rng;
+  std::mt19937_64 rng;
   int elapsed_steps = 0;
   bool needs_reset = true;
   Eigen::VectorXd last_observation;
+  std::vector<EnvState> wrapped;  // a wrapper's inner environment (empty otherwise)
 };
 
 class Env {
@@ -70,6 +71,9 @@ class Env {
   virtual StepResult step_impl(const Eigen::VectorXd& action) = 0;
   virtual std::vector<double> save_sim() const = 0;
   virtual void restore_sim(const std::vector<double>& sim) = 0;
+  // Wrappers snapshot the environment they wrap here.
+  virtual void save_wrapped(EnvState& state) const {}
+  virtual void restore_wrapped(const EnvState& state) {}
 
  private:
   std::mt19937_64 rng_{0};
@@ -99,8 +103,10 @@ class FrameSkip : public Env {
  protected:
   Eigen::VectorXd reset_impl(std::mt19937_64& rng) override;
   StepResult step_impl(const Eigen::VectorXd& action) override;
-  std::vector<double> save_sim() const override;
-  void restore_sim(const std::vector<double>& sim) override;
+  std::vector<double> save_sim() const override { return {}; }
+  void restore_sim(const std::vector<double>& sim) override {}
+  void save_wrapped(EnvState& state) const override;
+  void restore_wrapped(const EnvState& state) override;
 
  private:
   std::unique_ptr<Env> inner_;

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Configures (once) and builds hlt in build/ (Release). Extra arguments go to the build tool.
+# Configures (once) and builds hlt in build/ (Release). Arguments name targets to build (default: all).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 build_dir=${HLT_BUILD_DIR:-build}
@@ -7,4 +7,8 @@ jobs=${HLT_JOBS:-$(nproc)}
 if [ ! -f "$build_dir/build.ninja" ]; then
   cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=${HLT_BUILD_TYPE:-Release}
 fi
-cmake --build "$build_dir" -j "$jobs" "$@"
+if [ $# -gt 0 ]; then
+  cmake --build "$build_dir" -j "$jobs" --target "$@"
+else
+  cmake --build "$build_dir" -j "$jobs"
+fi
