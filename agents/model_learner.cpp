@@ -27,12 +27,20 @@ ModelLosses ModelLearner::update(const Batch& b) {
 void ModelLearner::save(CheckpointWriter& w) const {
   w.add_module("dynamics", *dynamics_);
   w.add_module("reward", *reward_);
-  w.add_optimizer("models", *optimizer_);
+  save_training_state(w);
 }
 
 void ModelLearner::load(CheckpointReader& r) {
   r.load_module("dynamics", *dynamics_);
   r.load_module("reward", *reward_);
+  load_training_state(r);
+}
+
+void ModelLearner::save_training_state(CheckpointWriter& w) const {
+  w.add_optimizer("models", *optimizer_);
+}
+
+void ModelLearner::load_training_state(CheckpointReader& r) {
   r.load_optimizer("models", *optimizer_);
 }
 

@@ -30,8 +30,12 @@ class ModelLearner {
  public:
   ModelLearner(DynamicsModel dynamics, RewardModel reward, const ModelLearnerOptions& options);
   ModelLosses update(const Batch& batch);
+  // Both models and the optimizer.
   void save(CheckpointWriter& writer) const;
   void load(CheckpointReader& reader);
+  // The optimizer alone (the caller checkpoints the models with the other shared networks).
+  void save_training_state(CheckpointWriter& writer) const;
+  void load_training_state(CheckpointReader& reader);
 
  private:
   ModelLearnerOptions options_;

@@ -289,8 +289,8 @@ struct Trainer::Impl {
 
   std::string path(const char* file) const { return (fs::path(dir) / file).string(); }
 
-  void save_checkpoint() {
-    CheckpointWriter w;
+  // What a tool needs to run the trained networks: config, counters, policy architecture and weights.
+  void add_networks(CheckpointWriter& w) const {
     w.add_string("config", config.to_yaml());
     w.add_string("env", config.get_string("env"));
     w.add_string("method", config.get_string("method"));
@@ -301,16 +301,34 @@ struct Trainer::Impl {
     w.add_int("evaluations", evaluations);
     w.add_int("next_checkpoint", next_checkpoint);
     w.add_tensor("wall_seconds", torch::tensor({wall_time()}, torch::kFloat64));
-    w.add_tensor("torch_rng", at::detail::getDefaultCPUGenerator().get_state());
     if (models.policy) {
       // Enough to rebuild the policy without the run's config (hlt_rollout --policy checkpoint:PATH).
       w.add_tensor("policy_hidden", torch::tensor(config.get_int_list("policy.hidden"), torch::kInt64));
       w.add_string("policy_activation", config.get_string("policy.activation"));
+      w.add_module("policy", *models.policy);
     }
-    if (sac) sac->save(w);
-    if (learner) learner->save(w);
+    if (models.dynamics) {
+      w.add_module("dynamics", *models.dynamics);
+      w.add_module("reward", *models.reward);
+    }
+  }
+
+  // Everything a resumed run needs; written only at episode ends, where no transition is pending.
+  void save_checkpoint() {
+    CheckpointWriter w;
+    add_networks(w);
+    w.add_tensor("torch_rng", at::detail::getDefaultCPUGenerator().get_state());
+    if (sac) sac->save_training_state(w);
+    if (learner) learner->save_training_state(w);
     buffer->save(w.archive("replay"));
     w.save(path(kCheckpointFile));
+  }
+
+  // The networks at the end of the run (which may end mid-episode), for rollouts and evaluation.
+  void save_final() {
+    CheckpointWriter w;
+    add_networks(w);
+    w.save(path(kFinalFile));
   }
 
   void load_checkpoint() {
@@ -334,8 +352,13 @@ struct Trainer::Impl {
     wall_before = r.tensor("wall_seconds").item<double>();
     at::Generator generator = at::detail::getDefaultCPUGenerator();
     generator.set_state(r.tensor("torch_rng"));
-    if (sac) sac->load(r);
-    if (learner) learner->load(r);
+    if (models.policy) r.load_module("policy", *models.policy);
+    if (models.dynamics) {
+      r.load_module("dynamics", *models.dynamics);
+      r.load_module("reward", *models.reward);
+    }
+    if (sac) sac->load_training_state(r);
+    if (learner) learner->load_training_state(r);
     buffer->load(r.archive("replay"));
   }
 };
@@ -411,6 +434,7 @@ void Trainer::run(bool progress) {
   const int64_t every = s.config.get_int("eval.every");
   if (every > 0 && s.agent_steps % every != 0) s.evaluate();
   if (s.need_reset) s.save_checkpoint();
+  s.save_final();
 }
 
 }  // namespace hlt

@@ -4,7 +4,7 @@
 // episodes, losses and periodic evaluations to <run>/scalars.csv, writes the resolved config to
 // <run>/config.yaml, and checkpoints everything (networks, optimizers, replay buffer, generators, counters)
 // atomically to <run>/checkpoint.pt at episode ends, so a killed run resumes and logs exactly what an
-// uninterrupted run would have.
+// uninterrupted run would have. At the end it writes the networks alone to <run>/final.pt.
 #pragma once
 
 #include <cstdint>
@@ -32,7 +32,8 @@ class Trainer {
   // File names inside a run directory.
   static constexpr const char* kConfigFile = "config.yaml";
   static constexpr const char* kLogFile = "scalars.csv";
-  static constexpr const char* kCheckpointFile = "checkpoint.pt";
+  static constexpr const char* kCheckpointFile = "checkpoint.pt";  // resumable state, at episode ends
+  static constexpr const char* kFinalFile = "final.pt";            // the networks when the run stopped
 
  private:
   struct Impl;

@@ -49,8 +49,8 @@ void print_summary(const std::string& dir) {
   fmt::print(
       "done: {} environment steps; last evaluation return {:.1f}, last training episode return {:.1f}\n",
       last_step, last_eval, last_return);
-  fmt::print("results in {}/ ({}, {}, {})\n", dir, Trainer::kLogFile, Trainer::kConfigFile,
-             Trainer::kCheckpointFile);
+  fmt::print("results in {}/ ({}, {}, {}, {})\n", dir, Trainer::kLogFile, Trainer::kConfigFile,
+             Trainer::kFinalFile, Trainer::kCheckpointFile);
 }
 
 int run(int argc, char** argv) {

@@ -86,6 +86,19 @@ TEST(TrainCli, NeverOverwritesARunAndReportsCorruptCheckpoints) {
   Result r = run(kTrain + kSmall + " --method sac --steps 60 checkpoint.every=50 eval.every=0 --out " + dir);
   ASSERT_EQ(r.code, 0) << r.output;
   const std::string log_before = read_file(dir + "/scalars.csv");
+  // The trained policy runs in hlt_rollout, on its own environment only, and the run plots.
+  r = run(std::string(HLT_ROLLOUT_BIN) + " --env pendulum --episodes 2 --policy checkpoint:" + dir +
+          "/final.pt");
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("frame skip 4"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("mean return"), std::string::npos) << r.output;
+  r = run(std::string(HLT_ROLLOUT_BIN) + " --env acrobot --policy checkpoint:" + dir + "/final.pt");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.output.find("trained on pendulum, not acrobot"), std::string::npos) << r.output;
+  r = run(std::string("/usr/bin/python3 ") + HLT_PLOT_SCRIPT + " " + dir + " --out " + dir + "/curve.png" +
+          " --tags eval/return_mean,train/episode_return");
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir + "/curve.png"));
   r = run(kTrain + kSmall + " --method sac --steps 60 --out " + dir);
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("already holds a run"), std::string::npos) << r.output;
