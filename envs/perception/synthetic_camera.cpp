@@ -219,11 +219,19 @@ cv::Mat SyntheticCamera::render(const std::vector<TexturedQuad>& quads,
                                 const ImageEffects& effects) const {
   check(world_from_camera.matrix().allFinite(), "SyntheticCamera::render: camera pose is not finite");
   const Eigen::Isometry3d camera_from_world = world_from_camera.inverse();
-  const cv::Vec3b bg = options_.background;
-  cv::Mat colour(H_, W_, CV_32FC3, cv::Scalar(bg[0], bg[1], bg[2]));
-  cv::Mat depth(H_, W_, CV_32F, cv::Scalar(std::numeric_limits<float>::infinity()));
-  for (const TexturedQuad& q : quads)
-    draw(q, camera_from_world, colour, depth);
+  cv::Mat colour, depth;
+  if (!static_quads_.empty() && world_from_camera.isApprox(static_pose_, 1e-12)) {
+    static_colour_.copyTo(colour);
+    static_depth_.copyTo(depth);
+  } else {
+    const cv::Vec3b bg = options_.background;
+    colour.create(H_, W_, CV_32FC3);
+    colour.setTo(cv::Scalar(bg[0], bg[1], bg[2]));
+    depth.create(H_, W_, CV_32F);
+    depth.setTo(cv::Scalar(std::numeric_limits<float>::infinity()));
+    for (const TexturedQuad& q : static_quads_) draw(q, camera_from_world, colour, depth);
+  }
+  for (const TexturedQuad& q : quads) draw(q, camera_from_world, colour, depth);
   cv::Mat small;
   if (options_.supersample > 1) {
     cv::resize(colour, small, camera_.size(), 0, 0, cv::INTER_AREA);
@@ -231,6 +239,23 @@ cv::Mat SyntheticCamera::render(const std::vector<TexturedQuad>& quads,
     small = colour;
   }
   return effects_on_float(small, effects);
+}
+
+void SyntheticCamera::set_static_quads(std::vector<TexturedQuad> quads) {
+  static_quads_.clear();
+  static_colour_.release();
+  static_depth_.release();
+  if (quads.empty()) return;
+  check(camera_.has_extrinsics(), "SyntheticCamera::set_static_quads: the camera model has no extrinsics");
+  static_pose_ = camera_.world_from_camera();
+  const Eigen::Isometry3d camera_from_world = static_pose_.inverse();
+  const cv::Vec3b bg = options_.background;
+  static_colour_.create(H_, W_, CV_32FC3);
+  static_colour_.setTo(cv::Scalar(bg[0], bg[1], bg[2]));
+  static_depth_.create(H_, W_, CV_32F);
+  static_depth_.setTo(cv::Scalar(std::numeric_limits<float>::infinity()));
+  for (const TexturedQuad& q : quads) draw(q, camera_from_world, static_colour_, static_depth_);
+  static_quads_ = std::move(quads);
 }
 
 cv::Mat SyntheticCamera::apply_effects(const cv::Mat& image_bgr, const ImageEffects& effects) {
@@ -331,12 +356,12 @@ void SyntheticCamera::draw(const TexturedQuad& q, const Eigen::Isometry3d& camer
   }
   const cv::Vec3f base = cv::Vec3f(q.colour[0], q.colour[1], q.colour[2]) * shade;
   const bool textured = !q.texture.empty();
-  const cv::Rect2d& area = q.texture_area;
 
   const int x0p = U0 / ss, x1p = U1 / ss, y0p = V0 / ss, y1p = V1 / ss;
-  const bool box_filtered = textured && !q.smooth_texture;
   for (int y = y0p; y <= y1p; ++y) {
     for (int x = x0p; x <= x1p; ++x) {
+      // A texture's contribution is computed once per pixel, over the pixel's footprint; the samples only
+      // decide which patch covers which part of the pixel.
       bool have_pixel_colour = false;
       cv::Vec3f pixel_colour;
       for (int j = 0; j < ss; ++j) {
@@ -355,24 +380,15 @@ void SyntheticCamera::draw(const TexturedQuad& q, const Eigen::Isometry3d& camer
           const double t = z * (d2.x() * rx + d2.y() * ry + d2.z()) - t0;
           if (s < 0 || s > 1 || t < 0 || t > 1) continue;
           zrow[U] = static_cast<float>(z);
-          if (box_filtered) {
-            // Printed patterns: the exact mean of the texture over the whole pixel footprint, so their edges
-            // are as sharp and as precisely placed as a real sensor would integrate them.
-            if (!have_pixel_colour) {
-              pixel_colour = footprint_colour(q, n, nc0, d1, d2, s0, t0, x, y) * shade;
-              have_pixel_colour = true;
-            }
-            crow[U] = pixel_colour;
+          if (!textured) {
+            crow[U] = base;
             continue;
           }
-          if (textured) {
-            const double u = (s - area.x) / area.width, v = (t - area.y) / area.height;
-            if (u >= 0 && u < 1 && v >= 0 && v < 1) {
-              crow[U] = bilinear_sample(q.texture, u, v) * shade;
-              continue;
-            }
+          if (!have_pixel_colour) {
+            pixel_colour = footprint_colour(q, n, nc0, d1, d2, s0, t0, x, y) * shade;
+            have_pixel_colour = true;
           }
-          crow[U] = base;
+          crow[U] = pixel_colour;
         }
       }
     }
@@ -399,6 +415,12 @@ cv::Vec3f SyntheticCamera::footprint_colour(const TexturedQuad& q, const Eigen::
   const cv::Rect2d& area = q.texture_area;
   const double kx = q.texture.cols / area.width, ky = q.texture.rows / area.height;
   const Eigen::Vector2d centre((s - area.x) * kx, (t - area.y) * ky);
+  if (q.smooth_texture) {
+    const double u = centre.x() / q.texture.cols, v = centre.y() / q.texture.rows;
+    return u >= 0 && u < 1 && v >= 0 && v < 1 ? bilinear_sample(q.texture, u, v) : outside;
+  }
+  // Printed patterns: the exact mean of the texture over the pixel's footprint, so their edges are placed
+  // as precisely as a real sensor integrates them.
   const Eigen::Vector2d a(ds_du * kx, dt_du * ky), b(ds_dv * kx, dt_dv * ky);
   return box_average(q.texture, centre, a, b, outside);
 }

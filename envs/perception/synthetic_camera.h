@@ -55,11 +55,15 @@ class SyntheticCamera {
   const CameraModel& camera() const { return camera_; }
   const SyntheticCameraOptions& options() const { return options_; }
 
-  // Renders with the camera model's extrinsics (world_from_camera).
+  // Renders `quads` (and the static quads) with the camera model's extrinsics (world_from_camera).
   cv::Mat render(const std::vector<TexturedQuad>& quads, const ImageEffects& effects = {}) const;
   // Renders from an explicit camera pose.
   cv::Mat render(const std::vector<TexturedQuad>& quads, const Eigen::Isometry3d& world_from_camera,
                  const ImageEffects& effects = {}) const;
+
+  // Quads that never move (table, reference tag). They are drawn into every image; for the camera model's
+  // own extrinsics they are drawn once here and reused, which saves most of the cost of a tabletop frame.
+  void set_static_quads(std::vector<TexturedQuad> quads);
 
   // Applies the effects to an image (used by render; public so real images can be degraded the same way).
   static cv::Mat apply_effects(const cv::Mat& image_bgr, const ImageEffects& effects);
@@ -77,7 +81,10 @@ class SyntheticCamera {
   cv::Mat rays_;  // CV_32FC2: per supersampled pixel, the camera-frame ray (x/z, y/z)
   double ray_x0_, ray_x1_, ray_y0_, ray_y1_;  // extent of rays_
   cv::Mat pixel_rays_;                        // CV_32FC2: per output pixel, the ray through its centre
-  cv::Mat pixel_jacobians_;                   // CV_32FC4: d(ray x, ray y)/d(pixel u, v) at the centre
+  cv::Mat pixel_jacobians_;
+  std::vector<TexturedQuad> static_quads_;
+  Eigen::Isometry3d static_pose_ = Eigen::Isometry3d::Identity();
+  cv::Mat static_colour_, static_depth_;  // static_quads_ drawn from static_pose_                   // CV_32FC4: d(ray x, ray y)/d(pixel u, v) at the centre
 };
 
 }  // namespace hlt

@@ -28,7 +28,7 @@ cv::Mat wood_texture(uint64_t seed) {
   for (int y = 0; y < out.rows; ++y)
     for (int x = 0; x < out.cols; ++x) {
       const float grain =
-          std::sin(2.0f * static_cast<float>(M_PI) * (y / 9.0f + 0.6f * warp.at<float>(y, x)));
+          std::sin(2.0f * static_cast<float>(M_PI) * (y / 9.0f + 0.25f * warp.at<float>(y, x)));
       const float f = 0.9f + 0.06f * grain + 0.025f * fine.at<float>(y, x);
       const cv::Vec3f c = base * f;
       out.at<cv::Vec3b>(y, x) = cv::Vec3b(cv::saturate_cast<uint8_t>(c[0]), cv::saturate_cast<uint8_t>(c[1]),
@@ -109,8 +109,12 @@ void TabletopScene::add_tag(const std::string& name, const Eigen::Isometry3d& ta
 }
 
 std::vector<TexturedQuad> TabletopScene::quads(const TabletopPoses& poses) const {
-  check(is_finite(poses.block) && is_finite(poses.target) && is_finite(poses.end_effector),
-        "TabletopScene::quads: object poses must be finite");
+  std::vector<TexturedQuad> out = static_quads();
+  for (TexturedQuad& q : object_quads(poses)) out.push_back(std::move(q));
+  return out;
+}
+
+std::vector<TexturedQuad> TabletopScene::static_quads() const {
   const TabletopLayout& L = layout_;
   std::vector<TexturedQuad> out;
   TexturedQuad table;
@@ -119,7 +123,6 @@ std::vector<TexturedQuad> TabletopScene::quads(const TabletopPoses& poses) const
   table.texture = table_texture_;
   table.smooth_texture = true;
   out.push_back(table);
-
   if (L.show_reference) {
     if (const TagSpec* ref = tags_.reference()) {
       Eigen::Isometry3d table_from_tag = *ref->table_from_tag;
@@ -127,21 +130,25 @@ std::vector<TexturedQuad> TabletopScene::quads(const TabletopPoses& poses) const
       out.push_back(tag_quad(*family_, ref->id, ref->size, table_from_tag));
     }
   }
+  return out;
+}
+
+std::vector<TexturedQuad> TabletopScene::object_quads(const TabletopPoses& poses) const {
+  check(is_finite(poses.block) && is_finite(poses.target) && is_finite(poses.end_effector),
+        "TabletopScene: object poses must be finite");
+  const TabletopLayout& L = layout_;
+  std::vector<TexturedQuad> out;
   if (L.show_target) {
-    for (TexturedQuad& q : box(poses.target, L.target_size, L.target_colour))
-      out.push_back(q);
+    for (TexturedQuad& q : box(poses.target, L.target_size, L.target_colour)) out.push_back(q);
     add_tag("target", poses.target, out);
   }
   if (L.show_block) {
-    for (TexturedQuad& q : box(poses.block, L.block_size, L.block_colour))
-      out.push_back(q);
+    for (TexturedQuad& q : box(poses.block, L.block_size, L.block_colour)) out.push_back(q);
     add_tag("block", poses.block, out);
   }
   if (L.show_end_effector) {
-    const Eigen::Isometry3d centre =
-        poses.end_effector * Eigen::Translation3d(0, 0, 0.5 * L.end_effector_size.z());
-    for (TexturedQuad& q : box(centre, L.end_effector_size, L.end_effector_colour))
-      out.push_back(q);
+    const Eigen::Isometry3d centre = poses.end_effector * Eigen::Translation3d(0, 0, 0.5 * L.end_effector_size.z());
+    for (TexturedQuad& q : box(centre, L.end_effector_size, L.end_effector_colour)) out.push_back(q);
     add_tag("end_effector", poses.end_effector, out);
   }
   return out;

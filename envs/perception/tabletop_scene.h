@@ -46,7 +46,12 @@ class TabletopScene {
   const TabletopLayout& layout() const { return layout_; }
   const TagConfig& tags() const { return tags_; }
 
+  // Everything: static_quads() followed by object_quads(poses).
   std::vector<TexturedQuad> quads(const TabletopPoses& poses) const;
+  // The parts that never move (table top, reference tag), for SyntheticCamera::set_static_quads.
+  std::vector<TexturedQuad> static_quads() const;
+  // Block, target and end-effector with their tags.
+  std::vector<TexturedQuad> object_quads(const TabletopPoses& poses) const;
 
   // Poses of a typical episode start: block, target and end-effector resting on the table.
   static TabletopPoses example_poses();
