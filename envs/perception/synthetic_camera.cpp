@@ -229,9 +229,11 @@ cv::Mat SyntheticCamera::render(const std::vector<TexturedQuad>& quads,
     colour.setTo(cv::Scalar(bg[0], bg[1], bg[2]));
     depth.create(H_, W_, CV_32F);
     depth.setTo(cv::Scalar(std::numeric_limits<float>::infinity()));
-    for (const TexturedQuad& q : static_quads_) draw(q, camera_from_world, colour, depth);
+    for (const TexturedQuad& q : static_quads_)
+      draw(q, camera_from_world, colour, depth);
   }
-  for (const TexturedQuad& q : quads) draw(q, camera_from_world, colour, depth);
+  for (const TexturedQuad& q : quads)
+    draw(q, camera_from_world, colour, depth);
   cv::Mat small;
   if (options_.supersample > 1) {
     cv::resize(colour, small, camera_.size(), 0, 0, cv::INTER_AREA);
@@ -254,7 +256,8 @@ void SyntheticCamera::set_static_quads(std::vector<TexturedQuad> quads) {
   static_colour_.setTo(cv::Scalar(bg[0], bg[1], bg[2]));
   static_depth_.create(H_, W_, CV_32F);
   static_depth_.setTo(cv::Scalar(std::numeric_limits<float>::infinity()));
-  for (const TexturedQuad& q : quads) draw(q, camera_from_world, static_colour_, static_depth_);
+  for (const TexturedQuad& q : quads)
+    draw(q, camera_from_world, static_colour_, static_depth_);
   static_quads_ = std::move(quads);
 }
 

@@ -84,7 +84,8 @@ class SyntheticCamera {
   cv::Mat pixel_jacobians_;
   std::vector<TexturedQuad> static_quads_;
   Eigen::Isometry3d static_pose_ = Eigen::Isometry3d::Identity();
-  cv::Mat static_colour_, static_depth_;  // static_quads_ drawn from static_pose_                   // CV_32FC4: d(ray x, ray y)/d(pixel u, v) at the centre
+  cv::Mat static_colour_, static_depth_;  // static_quads_ drawn from static_pose_                   //
+                                          // CV_32FC4: d(ray x, ray y)/d(pixel u, v) at the centre
 };
 
 }  // namespace hlt

@@ -76,6 +76,25 @@ TexturedQuad TabletopScene::tag_quad(const TagFamily& family, int id, double siz
   return q;
 }
 
+TexturedQuad TabletopScene::checkerboard_quad(cv::Size inner, double square,
+                                              const Eigen::Isometry3d& world_from_board) {
+  check(inner.width >= 2 && inner.height >= 2 && square > 0,
+        "checkerboard_quad: need >= 2x2 corners and square > 0");
+  const int sq_x = inner.width + 1, sq_y = inner.height + 1, px = 4;  // texels per square
+  cv::Mat tex((sq_y + 2) * px, (sq_x + 2) * px, CV_8UC1, cv::Scalar(kPaper));
+  for (int r = 0; r < sq_y; ++r)
+    for (int c = 0; c < sq_x; ++c)
+      if ((r + c) % 2 == 0) tex(cv::Rect((c + 1) * px, (r + 1) * px, px, px)).setTo(kInk);
+  const double w = (sq_x + 2) * square / 2, h = (sq_y + 2) * square / 2;
+  TexturedQuad q;
+  q.corners = {world_from_board * Eigen::Vector3d(-w, -h, 0), world_from_board * Eigen::Vector3d(w, -h, 0),
+               world_from_board * Eigen::Vector3d(w, h, 0), world_from_board * Eigen::Vector3d(-w, h, 0)};
+  q.texture = tex;
+  q.colour = cv::Vec3b(kPaper, kPaper, kPaper);
+  q.lit = false;
+  return q;
+}
+
 std::vector<TexturedQuad> TabletopScene::box(const Eigen::Isometry3d& world_from_box,
                                              const Eigen::Vector3d& size, cv::Vec3b colour) {
   // For each face: outward normal N and texture "right" R; "down" is R x N so the texture reads unmirrored
@@ -110,7 +129,8 @@ void TabletopScene::add_tag(const std::string& name, const Eigen::Isometry3d& ta
 
 std::vector<TexturedQuad> TabletopScene::quads(const TabletopPoses& poses) const {
   std::vector<TexturedQuad> out = static_quads();
-  for (TexturedQuad& q : object_quads(poses)) out.push_back(std::move(q));
+  for (TexturedQuad& q : object_quads(poses))
+    out.push_back(std::move(q));
   return out;
 }
 
@@ -139,16 +159,20 @@ std::vector<TexturedQuad> TabletopScene::object_quads(const TabletopPoses& poses
   const TabletopLayout& L = layout_;
   std::vector<TexturedQuad> out;
   if (L.show_target) {
-    for (TexturedQuad& q : box(poses.target, L.target_size, L.target_colour)) out.push_back(q);
+    for (TexturedQuad& q : box(poses.target, L.target_size, L.target_colour))
+      out.push_back(q);
     add_tag("target", poses.target, out);
   }
   if (L.show_block) {
-    for (TexturedQuad& q : box(poses.block, L.block_size, L.block_colour)) out.push_back(q);
+    for (TexturedQuad& q : box(poses.block, L.block_size, L.block_colour))
+      out.push_back(q);
     add_tag("block", poses.block, out);
   }
   if (L.show_end_effector) {
-    const Eigen::Isometry3d centre = poses.end_effector * Eigen::Translation3d(0, 0, 0.5 * L.end_effector_size.z());
-    for (TexturedQuad& q : box(centre, L.end_effector_size, L.end_effector_colour)) out.push_back(q);
+    const Eigen::Isometry3d centre =
+        poses.end_effector * Eigen::Translation3d(0, 0, 0.5 * L.end_effector_size.z());
+    for (TexturedQuad& q : box(centre, L.end_effector_size, L.end_effector_colour))
+      out.push_back(q);
     add_tag("end_effector", poses.end_effector, out);
   }
   return out;

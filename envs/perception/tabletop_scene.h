@@ -62,6 +62,12 @@ class TabletopScene {
   // y up, z out of the face). `size` is the black border's edge.
   static TexturedQuad tag_quad(const TagFamily& family, int id, double size,
                                const Eigen::Isometry3d& world_from_tag);
+  // A printed checkerboard with `inner_corners` (columns x rows) of squares' corners, squares of `square`
+  // metres and a one-square white margin, centred at `world_from_board` (x along the columns, y down the
+  // rows, z into the board). Its inner corner (c, r) is at ((c - (cols - 1) / 2) * square, (r - (rows - 1) /
+  // 2) * square, 0) in the board frame.
+  static TexturedQuad checkerboard_quad(cv::Size inner_corners, double square,
+                                        const Eigen::Isometry3d& world_from_board);
   // The six faces of a box centred at `world_from_box` with edge lengths `size`.
   static std::vector<TexturedQuad> box(const Eigen::Isometry3d& world_from_box, const Eigen::Vector3d& size,
                                        cv::Vec3b colour);

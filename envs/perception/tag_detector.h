@@ -47,7 +47,10 @@ struct TagDetectionResult {
 };
 
 struct TagDetectorOptions {
-  double quad_decimate = 1.0;  // libapriltag quad_decimate: >1 is faster but loses small, distant tags
+  // libapriltag quad_decimate: quads are found in an image this many times smaller (corners are refined at
+  // full resolution). 1.5 still finds 0.033 m tags at 0.8 m tilted by 40 degrees and halves the time of 1.0;
+  // at 2.0 that case is lost.
+  double quad_decimate = 1.5;
   double quad_sigma = 0.0;     // Gaussian blur before quad detection (pixels)
   bool refine_edges = true;    // libapriltag's own edge refinement (whole-pixel)
   bool refine_corners = true;  // then TagCornerRefiner's sub-pixel refinement

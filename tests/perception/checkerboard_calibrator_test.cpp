@@ -8,30 +8,13 @@
 
 #include "envs/perception/pose_math.h"
 #include "envs/perception/synthetic_camera.h"
+#include "envs/perception/tabletop_scene.h"
 #include "perception_test_support.h"
 
 namespace hlt {
 namespace {
 
 using test::error_of;
-
-// A printed board of (cols+1) x (rows+1) squares with a white margin of one square, as a quad centred at
-// `world_from_board` (board frame: x right, y down the printed board, z into it).
-TexturedQuad board_quad(cv::Size inner, double square, const Eigen::Isometry3d& world_from_board) {
-  const int sq_x = inner.width + 1, sq_y = inner.height + 1, px = 8;  // texels per square
-  cv::Mat tex((sq_y + 2) * px, (sq_x + 2) * px, CV_8UC1, cv::Scalar(235));
-  for (int r = 0; r < sq_y; ++r)
-    for (int c = 0; c < sq_x; ++c)
-      if ((r + c) % 2 == 0) tex(cv::Rect((c + 1) * px, (r + 1) * px, px, px)).setTo(25);
-  const double w = (sq_x + 2) * square / 2, h = (sq_y + 2) * square / 2;
-  TexturedQuad q;
-  q.corners = {world_from_board * Eigen::Vector3d(-w, -h, 0), world_from_board * Eigen::Vector3d(w, -h, 0),
-               world_from_board * Eigen::Vector3d(w, h, 0), world_from_board * Eigen::Vector3d(-w, h, 0)};
-  q.texture = tex;
-  q.colour = cv::Vec3b(235, 235, 235);
-  q.lit = false;
-  return q;
-}
 
 TEST(CheckerboardCalibrator, RecoversKnownIntrinsicsWithinOnePercent) {
   const CameraModel truth(640, 480, 612.0, 604.0, 326.0, 236.0, {-0.12, 0.04, 0.0, 0.0, 0.0});
@@ -51,9 +34,10 @@ TEST(CheckerboardCalibrator, RecoversKnownIntrinsicsWithinOnePercent) {
         ImageEffects e;
         e.noise_sigma = 1.0;
         e.seed = static_cast<uint64_t>(i);
-        EXPECT_TRUE(calibrator.add_image(
-            renderer.render({board_quad(inner, square, pose)}, Eigen::Isometry3d::Identity(), e),
-            "view" + std::to_string(i)))
+        EXPECT_TRUE(
+            calibrator.add_image(renderer.render({TabletopScene::checkerboard_quad(inner, square, pose)},
+                                                 Eigen::Isometry3d::Identity(), e),
+                                 "view" + std::to_string(i)))
             << i;
         ++i;
       }

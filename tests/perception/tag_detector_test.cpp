@@ -26,6 +26,8 @@ struct Sweep {
   int cases = 0, detected = 0;
   double worst_relative_position = 0;  // position error / distance
   double worst_rotation_deg = 0;
+  double worst_rotation_frontal_deg = 0;  // tags facing the camera: the ill-conditioned case for rotation
+  double worst_rotation_tilted_deg = 0;   // tilted by 20 or 40 degrees
 };
 
 // Renders each tag of the two sizes at 0.3, 0.5 and 0.8 m, frontal and tilted by 20 and 40 degrees, at two
@@ -55,6 +57,8 @@ Sweep sweep(const CameraModel& camera, const ImageEffects& effects, const TagDet
           const double dr = rotation_angle_between(d.camera_from_tag.linear(), truth.linear()) * 180.0 / M_PI;
           s.worst_relative_position = std::max(s.worst_relative_position, dp / distance);
           s.worst_rotation_deg = std::max(s.worst_rotation_deg, dr);
+          double& worst = tilt == 0.0 ? s.worst_rotation_frontal_deg : s.worst_rotation_tilted_deg;
+          worst = std::max(worst, dr);
         }
   return s;
 }
@@ -69,14 +73,17 @@ TEST(TagDetector, CleanImagesGivePosesWithinOnePercentAndTwoDegrees) {
 }
 
 // The bounds below are the ones docs/PERCEPTION.md states for degraded images (measured by
-// hlt_perception_eval over the same sweep with more seeds), with some room.
+// hlt_perception_eval over the same sweep with more seeds), with some room. Rotation is weakest for small
+// tags facing the camera from afar (0.033 m at 0.8 m: 25 pixels), where a tilt of a degree barely changes
+// the image; tilted tags, as the robot's camera sees them, stay within 2 degrees.
 TEST(TagDetector, NoisyImagesStayWithinTheDocumentedBounds) {
   ImageEffects e;
   e.noise_sigma = 3.0;
   const Sweep s = sweep(CameraModel(), e);
   EXPECT_EQ(s.detected, s.cases);
-  EXPECT_LT(s.worst_relative_position, 0.01);
-  EXPECT_LT(s.worst_rotation_deg, 6.0);
+  EXPECT_LT(s.worst_relative_position, 0.005);
+  EXPECT_LT(s.worst_rotation_tilted_deg, 2.0);
+  EXPECT_LT(s.worst_rotation_frontal_deg, 4.0);
 }
 
 TEST(TagDetector, BlurredImagesStayWithinTheDocumentedBounds) {
@@ -85,7 +92,15 @@ TEST(TagDetector, BlurredImagesStayWithinTheDocumentedBounds) {
   const Sweep s = sweep(CameraModel(), e);
   EXPECT_EQ(s.detected, s.cases);
   EXPECT_LT(s.worst_relative_position, 0.01);
-  EXPECT_LT(s.worst_rotation_deg, 3.0);
+  EXPECT_LT(s.worst_rotation_tilted_deg, 2.0);
+  EXPECT_LT(s.worst_rotation_frontal_deg, 15.0);
+  e.blur_sigma = 0.6;
+  e.noise_sigma = 2.0;
+  const Sweep t = sweep(CameraModel(), e);
+  EXPECT_EQ(t.detected, t.cases);
+  EXPECT_LT(t.worst_relative_position, 0.005);
+  EXPECT_LT(t.worst_rotation_tilted_deg, 2.0);
+  EXPECT_LT(t.worst_rotation_frontal_deg, 15.0);
 }
 
 TEST(TagDetector, DarkAndLensDistortedImagesStillGiveAccuratePoses) {
