@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <exception>
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <string>
 #include <vector>
@@ -37,8 +38,9 @@ void on_signal(int) {
   g_stop = true;
 }
 
-// A scripted push rendered by the synthetic camera: the end-effector comes in from the camera's side,
-// passes in front of the block (hiding its tag for a while), then pushes it towards the target.
+// A scripted push rendered by the synthetic camera: the end-effector first sweeps past the front of the block
+// (hiding its tag for a few frames, when colour tracking takes over), goes round behind it, comes down at its
+// left face and pushes it 10 cm along x.
 class SyntheticEpisode {
  public:
   SyntheticEpisode(const hlt::CameraModel& camera, const hlt::TagConfig& tags, int frames, double fps)
@@ -48,18 +50,22 @@ class SyntheticEpisode {
   bool read(cv::Mat& frame, double& time) {
     if (i_ >= frames_) return false;
     const double u = frames_ > 1 ? static_cast<double>(i_) / (frames_ - 1) : 0.0;  // 0..1 through the episode
+    struct Waypoint {
+      double u, x, y, z;
+    };
+    static const Waypoint path[] = {{0.0, 0.09, -0.015, 0.07}, {0.35, 0.34, -0.015, 0.07},
+                                    {0.45, 0.34, 0.13, 0.07},  {0.6, 0.15, 0.13, 0.07},
+                                    {0.7, 0.15, 0.05, 0.01},   {1.0, 0.25, 0.05, 0.01}};
+    size_t k = 0;
+    while (k + 2 < std::size(path) && u > path[k + 1].u)
+      ++k;
+    const Waypoint &a = path[k], &b = path[k + 1];
+    const double f = std::clamp((u - a.u) / (b.u - a.u), 0.0, 1.0);
     hlt::TabletopPoses p = hlt::TabletopScene::example_poses();
-    const double bx = 0.20, by = 0.05;
-    if (u < 0.5) {  // approach: from the front-left, sweeping past the front of the block
-      const double a = u / 0.5;
-      p.end_effector = hlt::pose_from_xyz_rpy(0.05 + 0.17 * a, -0.12 + 0.02 * a, 0.04, 0, 0, 0.0);
-      p.block = hlt::pose_from_xyz_rpy(bx, by, 0.025, 0, 0, 0.3);
-    } else {  // push: behind the block's left face, moving it towards the target
-      const double a = (u - 0.5) / 0.5;
-      const double x = bx + 0.12 * a, y = by + 0.1 * a;
-      p.block = hlt::pose_from_xyz_rpy(x, y, 0.025, 0, 0, 0.3 + 0.2 * a);
-      p.end_effector = hlt::pose_from_xyz_rpy(x - 0.05, y - 0.02, 0.01, 0, 0, 0.3 + 0.2 * a);
-    }
+    const double ex = a.x + f * (b.x - a.x), ey = a.y + f * (b.y - a.y), ez = a.z + f * (b.z - a.z);
+    p.end_effector = hlt::pose_from_xyz_rpy(ex, ey, ez, 0, 0, 0);
+    const double push = u > 0.7 ? ex - 0.15 : 0.0;  // the block moves with the end-effector once in contact
+    p.block = hlt::pose_from_xyz_rpy(0.20 + push, 0.05, 0.025, 0, 0, 0);
     hlt::ImageEffects e;
     e.noise_sigma = 2.0;
     e.seed = static_cast<uint64_t>(i_);

@@ -24,6 +24,10 @@ ColourTracker::ColourTracker(CameraModel camera, ColourTrackerOptions options)
   check(options_.open_radius >= 0 && options_.open_radius <= 10,
         "ColourTracker: open_radius must be in [0, 10]");
   check(std::isfinite(options_.plane_height), "ColourTracker: plane_height must be finite");
+  check(std::isfinite(options_.block_size) && options_.block_size >= 0,
+        "ColourTracker: block_size must be >= 0");
+  check(options_.min_visible_fraction >= 0 && options_.min_visible_fraction <= 1,
+        "ColourTracker: min_visible_fraction must be in [0, 1]");
 }
 
 cv::Mat ColourTracker::mask(const cv::Mat& image) const {
@@ -81,7 +85,27 @@ std::optional<Eigen::Vector3d> ColourTracker::locate(const ColourBlob& blob,
   if (!(lambda > 0)) return std::nullopt;  // plane behind the camera
   const Eigen::Vector3d p = origin + lambda * dir;
   if (!p.allFinite()) return std::nullopt;
+  if (options_.block_size > 0 &&
+      blob.area < options_.min_visible_fraction * expected_area(p, table_from_camera))
+    return std::nullopt;
   return p;
+}
+
+double ColourTracker::expected_area(const Eigen::Vector3d& p_table,
+                                    const Eigen::Isometry3d& table_from_camera) const {
+  const Eigen::Isometry3d camera_from_table = table_from_camera.inverse();
+  const double h = options_.block_size / 2;
+  std::vector<cv::Point2f> corners;
+  for (int i = 0; i < 8; ++i) {
+    const Eigen::Vector3d c =
+        camera_from_table * (p_table + Eigen::Vector3d(i & 1 ? h : -h, i & 2 ? h : -h, i & 4 ? h : -h));
+    if (c.z() <= 1e-6) return 0.0;
+    const cv::Point2d px = camera_.project_ideal(c);
+    corners.emplace_back(static_cast<float>(px.x), static_cast<float>(px.y));
+  }
+  std::vector<cv::Point2f> hull;
+  cv::convexHull(corners, hull);
+  return cv::contourArea(hull);
 }
 
 }  // namespace hlt

@@ -24,6 +24,10 @@ struct ColourTrackerOptions {
   double min_area = 40.0;       // pixels; smaller blobs are noise
   int open_radius = 0;          // morphological opening (pixels) against speckle; 0 disables
   double plane_height = 0.025;  // metres above the table: where the centroid's ray is intersected
+  // A blob much smaller than a whole block at the located position is a partly hidden block, whose centroid
+  // is off: locate() then reports nothing rather than a wrong position. block_size 0 disables the check.
+  double block_size = 0.05;           // edge of the (cubic) block, metres
+  double min_visible_fraction = 0.6;  // of the silhouette area expected for the whole block
 };
 
 struct ColourBlob {
@@ -39,13 +43,16 @@ class ColourTracker {
 
   // The largest blob in range. Accepts BGR or BGRA of the camera's size; grey images throw.
   ColourBlob detect(const cv::Mat& image) const;
-  // The blob's point on the plane z = plane_height of the table frame, or nothing if the ray misses it.
+  // The blob's point on the plane z = plane_height of the table frame; nothing if the ray misses the plane or
+  // the blob is too small for a whole block there (partly occluded).
   std::optional<Eigen::Vector3d> locate(const ColourBlob& blob,
                                         const Eigen::Isometry3d& table_from_camera) const;
   // The binary mask of in-range pixels (after opening), for inspection.
   cv::Mat mask(const cv::Mat& image) const;
 
   const ColourTrackerOptions& options() const { return options_; }
+  // Area in pixels of the silhouette of the whole block centred at `p_table` (yaw 0).
+  double expected_area(const Eigen::Vector3d& p_table, const Eigen::Isometry3d& table_from_camera) const;
 
  private:
   CameraModel camera_;
