@@ -124,7 +124,7 @@ void colour_table() {
   std::printf("### Colour tracking error on the table plane\n\n");
   std::printf(
       "The 5 cm blue block (with its tag on top) at 5 x 5 positions over x in [0, 0.4] m, y in [-0.1, 0.3] m "
-      "and yaw 0, 0.4 and 0.8 rad, seen by the default camera (0.6-0.9 m away, looking down at about 50 "
+      "and yaw 0, 0.4 and 0.8 rad, seen by the default camera (0.7-0.95 m away, looking down at about 50 "
       "degrees); error of the block centre in the table plane.\n\n");
   std::printf("| image | blocks found | median (mm) | max (mm) |\n|---|---|---|---|\n");
   for (const auto& [name, noise, blur] : {std::tuple{"clean", 0.0, 0.0}, std::tuple{"noise 3", 3.0, 0.0},
