@@ -128,6 +128,10 @@ int main(int argc, char** argv) {
   app.add_flag("--no-colour", no_colour, "no colour tracking when the block's tag is missing");
   app.add_option("--hsv-low", hsv_low, "colour tracker lower HSV bound H,S,V (default 95,110,35: blue)");
   app.add_option("--hsv-high", hsv_high, "colour tracker upper HSV bound H,S,V (default 125,255,255)");
+  app.add_option("--block-size", o.colour.block_size,
+                 "block edge (m): colour blobs much smaller than a whole block are ignored; 0: keep all")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   app.add_option("--plane-height", o.colour.plane_height, "height of the block's centre above the table (m)")
       ->capture_default_str();
   app.add_option("--position-gain", o.estimator.position_gain, "filter weight of a new position (0-1]")
@@ -140,7 +144,7 @@ int main(int argc, char** argv) {
                  "frames an object may be missed before it is invalid")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
-  app.add_flag("--quiet", quiet, "no per-second progress line");
+  app.add_flag("--quiet", quiet, "no progress line every 25 frames");
   CLI11_PARSE(app, argc, argv);
 
   try {
