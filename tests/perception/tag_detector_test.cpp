@@ -172,6 +172,24 @@ TEST(TagDetector, LibapriltagCornersAloneAreLessPrecise) {
   EXPECT_GT(plain.worst_rotation_deg, refined.worst_rotation_deg);
 }
 
+TEST(TagDetector, OtherFamiliesWork) {
+  const CameraModel camera;
+  const SyntheticCamera renderer(camera);
+  const Eigen::Isometry3d truth = test::tag_in_front(0.5, 30, 0.4);
+  for (const std::string family : {"tag25h9", "tag16h5", "tagStandard41h12"}) {
+    const TagConfig config =
+        TagConfig::parse("family: " + family + "\ntags:\n  - {id: 3, name: a, size: 0.04}\n", "test");
+    TagDetector detector(camera, config);
+    const TagDetectionResult r =
+        detector.detect(test::render_tag(renderer, TagFamily(family), 3, 0.04, truth));
+    ASSERT_EQ(r.tags.size(), 1u) << family;
+    EXPECT_LT((r.tags[0].camera_from_tag.translation() - truth.translation()).norm(), 0.002) << family;
+    // tagStandard41h12's border is light inside dark: the refiner declines and libapriltag's corners are
+    // kept.
+    EXPECT_EQ(r.tags[0].refined, family != "tagStandard41h12") << family;
+  }
+}
+
 TEST(TagDetector, UnknownIdsAreReportedWithoutPose) {
   const TagConfig config = TagConfig::parse(kTwoTags, "test");
   const CameraModel camera;
