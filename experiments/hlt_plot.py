@@ -3,11 +3,15 @@
 
     experiments/hlt_plot.py RUN_OR_PARENT [...] --out curves.png
         [--tags eval/return_mean,train/mode_insertion_gradient] [--title TEXT] [--max-step N]
+        [--table] [--at 16000,40000] [--threshold 880]
 
 Every directory given (or found below one) that holds scalars.csv and config.yaml is a run. Runs are grouped by
 method; each figure panel shows one tag against environment steps: the mean over seeds as a line and the
 standard deviation as a shaded band. Tags logged at different steps in different seeds (episode returns) are
-interpolated onto a common grid. Uses Debian's python3-matplotlib.
+interpolated onto a common grid. With --table it also prints, per method and for the first tag, the mean and
+standard deviation over seeds at the steps given with --at (default: the last common step), every seed's
+value there, and the first step at which the mean over seeds reaches --threshold. Uses Debian's
+python3-matplotlib.
 """
 import argparse
 import csv
@@ -86,6 +90,27 @@ def mean_band(curves, max_step):
     return grid, values.mean(axis=0), values.std(axis=0)
 
 
+def print_table(groups, methods, tag, args):
+    steps = [int(x) for x in args.at.split(",") if x]
+    print(f"| method | seeds | step | {tag} mean +- std | per seed |"
+          + (f" first step mean >= {args.threshold:g} |" if args.threshold is not None else ""))
+    print("|---|---|---|---|---|" + ("---|" if args.threshold is not None else ""))
+    for method in methods:
+        curves = [(np.asarray(s[tag][0]), np.asarray(s[tag][1])) for s in groups[method] if tag in s]
+        if not curves:
+            continue
+        first = ""
+        if args.threshold is not None:
+            grid, mean, _ = mean_band(curves, 0)
+            hits = grid[mean >= args.threshold]
+            first = f" {int(hits[0])} |" if len(hits) else " not reached |"
+        for step in steps or [min(xs[-1] for xs, _ in curves)]:
+            values = [float(np.interp(step, xs, ys)) for xs, ys in curves]
+            per_seed = ", ".join(f"{v:.1f}" for v in values)
+            print(f"| {method} | {len(values)} | {step} | {np.mean(values):.1f} +- {np.std(values):.1f} | {per_seed} |"
+                  + first)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("runs", nargs="+", help="run directories or parents holding several")
@@ -93,6 +118,9 @@ def main():
     parser.add_argument("--tags", default="eval/return_mean", help="comma-separated tags, one panel each")
     parser.add_argument("--title", default=None)
     parser.add_argument("--max-step", type=int, default=0, help="cut the x axis at this environment step")
+    parser.add_argument("--table", action="store_true", help="print a summary table of the first tag")
+    parser.add_argument("--at", default="", help="comma-separated environment steps for the table")
+    parser.add_argument("--threshold", type=float, default=None, help="report when the mean first reaches this")
     args = parser.parse_args()
 
     groups = {}
@@ -103,6 +131,8 @@ def main():
         groups.setdefault(method, []).append(read_scalars(run))
     tags = [t for t in args.tags.split(",") if t]
     methods = sorted(groups, key=lambda m: (METHOD_ORDER.index(m) if m in METHOD_ORDER else 99, m))
+    if args.table:
+        print_table(groups, methods, tags[0], args)
 
     fig, axes = plt.subplots(len(tags), 1, figsize=(7, 3.2 * len(tags)), sharex=True, squeeze=False)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
