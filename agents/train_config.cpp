@@ -53,7 +53,7 @@ Config make_train_config() {
                   0.999)
       .add_bool("deterministic.clamp_adjoint", false, "clamp rho to [-1, 1] before use (the authors' choice)")
       .add_double("deterministic.exploration_decay", 0.999,
-                  "exploration noise std = decay^t, t counting environment interactions", 0.0, 1.0);
+                  "exploration noise std = decay^t, t counting agent steps (environment interactions)", 0.0, 1.0);
   return c;
 }
 

@@ -141,7 +141,8 @@ struct Trainer::Impl {
   }
 
   at::Tensor act(Controller& c, const Eigen::VectorXd& state) {
-    if (auto* det = dynamic_cast<DeterministicHybrid*>(&c)) det->set_interactions(env_steps);
+    // Exploration decays with agent steps (calls to the environment's step), as in the authors' code.
+    if (auto* det = dynamic_cast<DeterministicHybrid*>(&c)) det->set_interactions(agent_steps);
     return c.act(to_tensor(state));
   }
 

@@ -4,7 +4,7 @@
 // needs by autograd (all H steps in one batched backward pass), sweeps the adjoint backwards,
 // rho_t = g_t + A_t^T rho_{t+1} with rho_H = 0, A_t = df/ds + df/da dmu/ds, g_t = dr/ds + dr/da dmu/ds, and
 // applies a* = mu(s0) + Sigma(s0) (dr/da|_0 + B_0^T rho_1) + eps, clipped to [-1, 1], where
-// eps ~ N(0, decay^t) over all environment interactions t. It reports the mode insertion gradient
+// eps ~ N(0, decay^t) over all environment interactions t (agent steps). It reports the mode insertion gradient
 // (r(s0, a*) - r(s0, mu(s0))) + rho_1^T (f(s0, a*) - f(s0, mu(s0))).
 // Without a policy (mu = 0, Sigma = I) it is the model-based deterministic baseline.
 #pragma once
@@ -25,7 +25,8 @@ struct DeterministicHybridOptions {
   int64_t horizon = 5;
   // The authors clamp rho to [-1, 1] before use; off by default (the unclamped rho is the exact gradient).
   bool clamp_adjoint = false;
-  // Exploration noise std = exploration_decay^t (t counts environment interactions; 0.999 in the paper).
+  // Exploration noise std = exploration_decay^t (t counts environment interactions, i.e. agent steps;
+  // 0.999 in the paper).
   double exploration_decay = 0.999;
   bool explore = true;
 };
@@ -59,7 +60,8 @@ class DeterministicHybrid : public Controller {
                       const DeterministicHybridOptions& options, std::string name = "deterministic_hybrid");
 
   std::string name() const override { return name_; }
-  // Number of environment interactions so far (drives the exploration decay); the training loop sets it.
+  // Number of environment interactions (agent steps) so far, which drives the exploration decay; the
+  // training loop sets it.
   void set_interactions(int64_t t) { interactions_ = t; }
   void set_explore(bool explore) { options_.explore = explore; }
   const AdjointTrace& trace() const { return trace_; }
