@@ -27,11 +27,20 @@ struct Shape {
   Eigen::Vector3d from = Eigen::Vector3d::Zero();
   Eigen::Vector3d to = Eigen::Vector3d::Zero();
   double radius = 0.0;
+  // A capsule built as two spheres and their hull (btMultiSphereShape), as PyBullet builds an MJCF "fromto"
+  // capsule, instead of a btCapsuleShapeZ. The surface is the same, but Bullet's collision margin, bounding
+  // box and hence contact-breaking threshold and inertia estimate differ.
+  bool sphere_pair = false;
 
   static Shape capsule(const Eigen::Vector3d& from, const Eigen::Vector3d& to, double radius) {
-    return {from, to, radius};
+    return {from, to, radius, false};
   }
-  static Shape sphere(const Eigen::Vector3d& centre, double radius) { return {centre, centre, radius}; }
+  static Shape sphere_pair_capsule(const Eigen::Vector3d& from, const Eigen::Vector3d& to, double radius) {
+    return {from, to, radius, true};
+  }
+  static Shape sphere(const Eigen::Vector3d& centre, double radius) {
+    return {centre, centre, radius, false};
+  }
   bool is_sphere() const { return from == to; }
 };
 
@@ -42,8 +51,9 @@ struct BodySpec {
   Eigen::Vector3d inertia = Eigen::Vector3d::Zero();  // principal moments about the COM, world-aligned axes
   Eigen::Vector3d com = Eigen::Vector3d::Zero();      // world position at the zero configuration
   std::vector<Shape> shapes;
-  // Every body with shapes gets a collider (Bullet needs one to place the body's constraints in a simulation
-  // island); one that does not collide is filtered out of every pair.
+  // Every link gets a collider, an empty one when it has no shapes (Bullet places a link's joint-limit
+  // constraint in a simulation island by the link's own collider, as PyBullet's import does too); one that
+  // does not collide is filtered out of every pair.
   bool collides = false;
   double friction = 0.8;
   double restitution = 0.0;
@@ -90,6 +100,10 @@ Eigen::Vector3d capsule_inertia(double mass, double radius, double half_length, 
 // bounding box includes the collision margin on every side.
 Eigen::Vector3d fromto_capsule_inertia(double mass, const Eigen::Vector3d& from, const Eigen::Vector3d& to,
                                        double radius);
+// The moments Bullet estimates for a body's collision shape, as PyBullet's MJCF import uses them: a single
+// sphere centred on the COM is a solid sphere (0.4 m r^2); anything else is a compound, whose estimate is the
+// box of its bounding box about `com` (sphere pairs include Bullet's 0.04 m margin, capsules do not).
+Eigen::Vector3d estimated_inertia(double mass, const std::vector<Shape>& shapes, const Eigen::Vector3d& com);
 
 class World;
 
@@ -123,6 +137,13 @@ class Robot {
 
   // The pose of a body frame (its COM; world-aligned at the zero configuration). link -1 is the base.
   Eigen::Isometry3d body_pose(int link) const;
+  // The COM pose and velocity as PyBullet's getLinkState / getBasePositionAndOrientation report them. A
+  // link's pose is Bullet's cached one, which World::step leaves as it was at the start of the last sub-step
+  // (Bullet refreshes it before each sub-step's solve); the base pose and all velocities are current. link -1
+  // is the base.
+  Eigen::Vector3d com_position(int link) const;
+  Eigen::Quaterniond com_orientation(int link) const;
+  Eigen::Vector3d com_linear_velocity(int link) const;
   // A body's shapes in world coordinates at the current configuration.
   std::vector<Shape> world_shapes(int link) const;
 
@@ -137,6 +158,8 @@ class Robot {
 
   btMultiBody& multibody() { return *body_; }
   const btMultiBody& multibody() const { return *body_; }
+  // The link's collider (link -1: the base's; null when the base has none).
+  const btMultiBodyLinkCollider* collider(int link) const;
 
  private:
   friend class World;
@@ -151,6 +174,7 @@ class Robot {
   std::unique_ptr<btMultiBody> body_;
   std::vector<std::unique_ptr<btMultiBodyConstraint>> limits_;
   std::vector<std::unique_ptr<btMultiBodyLinkCollider>> colliders_;
+  std::vector<const btMultiBodyLinkCollider*> link_colliders_;  // by link index + 1 (base first)
   std::vector<std::unique_ptr<btCollisionShape>> shapes_;
   std::vector<double> pending_forces_;
   bool has_pending_forces_ = false;
