@@ -9,7 +9,7 @@ namespace {
 
 struct Piece {
   Shape shape;
-  double depth;  // larger is further from the viewer
+  double depth;  // of the shape's nearest point; larger is further from the viewer
   bool body;
 };
 
@@ -24,7 +24,7 @@ void draw_projected(SideView& view, const Robot& robot, int u, int v, int depth_
     const bool body = !body_found;
     body_found = true;
     for (const Shape& s : shapes)
-      pieces.push_back({s, looking * 0.5 * (s.from[depth_axis] + s.to[depth_axis]), body});
+      pieces.push_back({s, looking * 0.5 * (s.from[depth_axis] + s.to[depth_axis]) - s.radius, body});
   }
   std::stable_sort(pieces.begin(), pieces.end(),
                    [](const Piece& a, const Piece& b) { return a.depth > b.depth; });

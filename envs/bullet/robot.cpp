@@ -10,6 +10,7 @@
 #include <BulletDynamics/Featherstone/btMultiBody.h>
 #include <BulletDynamics/Featherstone/btMultiBodyDynamicsWorld.h>
 #include <BulletDynamics/Featherstone/btMultiBodyJointLimitConstraint.h>
+#include <BulletDynamics/Featherstone/btMultiBodyJointMotor.h>
 #include <BulletDynamics/Featherstone/btMultiBodyLinkCollider.h>
 
 #include "hlt/util/error.h"
@@ -170,8 +171,8 @@ Robot::Robot(btMultiBodyDynamicsWorld& world, RobotSpec spec) : world_(world), s
     const LinkSpec& l = spec_.links[i];
     const Eigen::Vector3d parent_com = l.parent < 0 ? spec_.base.com : spec_.links[l.parent].com;
     // Every body frame is world-aligned at the zero configuration, so world offsets are frame offsets.
-    const btVector3 parent_to_pivot = to_bt(l.anchor - parent_com);
-    const btVector3 pivot_to_com = to_bt(l.com - l.anchor);
+    const btVector3 parent_to_pivot = to_bt(l.parent_com_to_pivot.value_or(l.anchor - parent_com));
+    const btVector3 pivot_to_com = to_bt(l.pivot_to_com.value_or(l.com - l.anchor));
     // The axis goes in as given: PyBullet passes MJCF axes unnormalised too.
     switch (l.joint) {
       case JointType::kFixed:
@@ -196,6 +197,11 @@ Robot::Robot(btMultiBodyDynamicsWorld& world, RobotSpec spec) : world_(world), s
     if (!l.limits) continue;
     limits_.push_back(
         std::make_unique<btMultiBodyJointLimitConstraint>(body_.get(), i, l.limits->first, l.limits->second));
+    world_.addMultiBodyConstraint(limits_.back().get());
+  }
+  for (int i = 0; spec_.disabled_motors && i < n; ++i) {
+    if (spec_.links[i].joint == JointType::kFixed) continue;
+    limits_.push_back(std::make_unique<btMultiBodyJointMotor>(body_.get(), i, 0, 0.0, 0.0));
     world_.addMultiBodyConstraint(limits_.back().get());
   }
 

@@ -69,6 +69,11 @@ struct LinkSpec : BodySpec {
   Eigen::Vector3d anchor = Eigen::Vector3d::Zero();  // joint position, world, zero configuration
   Eigen::Vector3d axis = Eigen::Vector3d::UnitY();   // joint axis, world, zero configuration
   std::optional<std::pair<double, double>> limits;   // [lower, upper], enforced by a limit constraint
+  // The same placement as offsets between frames (parent COM to pivot, pivot to this COM), for a description
+  // that has them in local form: derived from world positions they can differ in the last bits, which long
+  // chaotic runs amplify. When set, they are used as given.
+  std::optional<Eigen::Vector3d> parent_com_to_pivot;
+  std::optional<Eigen::Vector3d> pivot_to_com;
 };
 
 struct RobotSpec {
@@ -77,6 +82,11 @@ struct RobotSpec {
   bool fixed_base = true;
   std::vector<LinkSpec> links;  // a link's parent comes before it
   bool self_collision = false;
+  // Give every revolute and prismatic joint a switched-off motor (maximum impulse 0), added after all limit
+  // constraints, as PyBullet does for every body it loads. The motors produce no solver rows, but they take
+  // places in Bullet's constraint list, whose (unstable) sort by island decides the order in which joint
+  // limits that are active together get solved, and so the result to the last bits and beyond.
+  bool disabled_motors = false;
 };
 
 // The planar root PyBullet gives a body whose MJCF root has slide-x, slide-z and hinge-y joints: a massless

@@ -134,10 +134,17 @@ void fill_body(const Body& b, const Eigen::Vector3d& origin, bullet::BodySpec& o
   if (last.kind == Geom::Kind::kFromTo) out.com = origin + 0.5 * (single3(last.from) + single3(last.to));
   out.inertia = bullet::estimated_inertia(out.mass, out.shapes, out.com);
   out.collides = true;
-  out.friction = b.friction;
+  out.friction = single(b.friction);
   out.restitution = 0.0;
   out.collision_group = kDefaultFilter;
   out.collision_mask = kStaticFilter;
+}
+
+// The offset of a body's COM from its frame origin, as PyBullet's import holds it.
+Eigen::Vector3d local_com(const Body& b) {
+  const Geom& last = b.geoms.back();
+  if (last.kind == Geom::Kind::kFromTo) return 0.5 * (single3(last.from) + single3(last.to));
+  return Eigen::Vector3d::Zero();
 }
 
 struct Builder {
@@ -145,11 +152,16 @@ struct Builder {
   const Frames& frames;
   BuiltModel out;
 
-  void add(int body, int parent_link) {
+  // Offsets are also given in local form, composed in the order PyBullet's import composes its transforms,
+  // so that the multibody matches PyBullet's to the last bit.
+  void add(int body, int parent_link, const Eigen::Vector3d& parent_local_com) {
     const Body& b = model.bodies[body];
     const Eigen::Vector3d& origin = frames.origin[body];
+    const Eigen::Vector3d pos = single3(b.pos);
     int parent = parent_link;
-    for (const Joint& j : b.joints) {
+    Eigen::Vector3d first_joint = Eigen::Vector3d::Zero();
+    for (size_t k = 0; k < b.joints.size(); ++k) {
+      const Joint& j = b.joints[k];
       bullet::LinkSpec l;
       l.name = "joint:" + j.name;
       l.parent = parent;
@@ -158,6 +170,13 @@ struct Builder {
       l.com = l.anchor;
       l.axis = single3(j.axis);
       l.limits = j.range;
+      if (k == 0) {
+        first_joint = single3(j.pos);
+        l.parent_com_to_pivot = (first_joint + pos) + (-parent_local_com);
+      } else {
+        l.parent_com_to_pivot = single3(j.pos) + (-first_joint);
+      }
+      l.pivot_to_com = Eigen::Vector3d::Zero();
       out.spec.links.push_back(l);
       parent = static_cast<int>(out.spec.links.size()) - 1;
       if (j.actuated) out.joints.push_back({j.name, parent, j.range->first, j.range->second, j.power_coef});
@@ -172,12 +191,15 @@ struct Builder {
       l.parent = parent;
       l.joint = bullet::JointType::kFixed;
       l.anchor = origin;
+      l.parent_com_to_pivot =
+          b.joints.empty() ? Eigen::Vector3d(pos + (-parent_local_com)) : Eigen::Vector3d(-first_joint);
+      l.pivot_to_com = local_com(b);
       out.spec.links.push_back(l);
       link = static_cast<int>(out.spec.links.size()) - 1;
     }
     out.bodies[b.name] = link;
     for (int child : frames.children[body])
-      add(child, link);
+      add(child, link, local_com(b));
   }
 };
 
@@ -226,13 +248,14 @@ BuiltModel build(const Model& model) {
   Builder b{model, frames, {}};
   b.out.spec.name = model.name;
   b.out.spec.self_collision = false;
+  b.out.spec.disabled_motors = true;
   if (!model.bodies[0].joints.empty()) {
     // PyBullet hangs a root body with joints from a massless fixed base at the world origin.
     b.out.spec.fixed_base = true;
     b.out.spec.base = bullet::BodySpec();
     b.out.spec.base.name = "world";
   }
-  b.add(0, -1);
+  b.add(0, -1, Eigen::Vector3d::Zero());
   return std::move(b.out);
 }
 

@@ -40,8 +40,8 @@ struct Joint {
   bullet::JointType type = bullet::JointType::kRevolute;  // hinge or slide
   Eigen::Vector3d pos = Eigen::Vector3d::Zero();          // in the body's frame
   Eigen::Vector3d axis = Eigen::Vector3d::UnitY();        // as written (PyBullet does not normalise it)
-  // rad or m, as PyBullet holds it: a range the file gives in degrees is converted in double precision
-  // (deg()), one given in radians keeps its single-precision value (single()). None: unlimited.
+  // rad or m, as PyBullet holds it: a range the file gives in degrees converted with deg(), one given in
+  // radians rounded with single(). None: unlimited.
   std::optional<std::pair<double, double>> range;
   bool actuated = true;       // false: a root joint the agent does not drive
   double power_coef = 100.0;  // torque = power * power_coef * clip(a, -1, 1)
@@ -89,13 +89,19 @@ struct BuiltModel {
 // floating root without mass, a joint without a range that is actuated, bad geoms).
 BuiltModel build(const Model& model);
 
-// Degrees to radians, as PyBullet converts MJCF ranges given in degrees.
-constexpr double deg(double degrees) {
-  return degrees * 3.14159265358979323846 / 180.0;
+// A number as PyBullet's MJCF parser reads it (single precision). The rounding goes through a volatile
+// float: GCC 12's SLP vectoriser at -O2 and above drops a double -> float -> double round trip.
+inline double single(double x) {
+  volatile float f = static_cast<float>(x);
+  return f;
 }
-// A number as PyBullet's MJCF parser reads it (single precision).
-constexpr double single(double x) {
-  return static_cast<double>(static_cast<float>(x));
+
+// Degrees to radians as PyBullet converts MJCF ranges given in degrees: in single precision, with pi in
+// single precision (-150 degrees becomes -2.6179940700531006 rad).
+inline double deg(double degrees) {
+  volatile float f = static_cast<float>(degrees) * static_cast<float>(3.14159265358979323846);
+  f = f / 180.0f;
+  return f;
 }
 
 }  // namespace hlt::locomotion

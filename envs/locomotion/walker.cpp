@@ -113,11 +113,20 @@ void Walker::refresh_feet_contact() {
     feet_contact_[f] = world_->touches_ground(*robot_, feet_[f]) ? 1.0 : 0.0;
 }
 
+void Walker::set_next_start(const Eigen::VectorXd& q) {
+  check(q.size() == action_dim() && q.allFinite(), "{}: a start needs {} finite joint angles, got {}",
+        spec_.name, action_dim(), q.size());
+  next_start_ = q;
+}
+
 Eigen::VectorXd Walker::reset_impl(std::mt19937_64& rng) {
   robot_->restore_state(start_state_.data(), start_state_.size());
   std::uniform_real_distribution<double> u(-0.1, 0.1);
-  for (const ActuatedJoint& j : model_.joints)
-    robot_->set_joint_state(j.link, u(rng), 0.0);
+  for (int i = 0; i < action_dim(); ++i) {
+    const double drawn = u(rng);
+    robot_->set_joint_state(model_.joints[i].link, next_start_ ? (*next_start_)[i] : drawn, 0.0);
+  }
+  next_start_.reset();
   // PyBullet carries contact points over from the previous episode; starting without any makes an episode
   // depend on its seed only.
   world_->clear_contacts();

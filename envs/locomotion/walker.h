@@ -77,6 +77,10 @@ class Walker : public Env {
   // origin) that the potential measures from.
   Eigen::Vector2d parts_mean() const;
 
+  // Makes the next reset start the actuated joints at `q` (action order) instead of the drawn angles (the
+  // generator advances as usual), e.g. to compare with PyBullet from identical states.
+  void set_next_start(const Eigen::VectorXd& q);
+
   const WalkerSpec& spec() const { return spec_; }
   const BuiltModel& model() const { return model_; }
   bullet::Robot& robot() { return *robot_; }
@@ -104,6 +108,7 @@ class Walker : public Env {
   int torso_ = -1;
   std::vector<int> feet_;
   std::vector<double> start_state_;  // the robot at the zero configuration, at rest
+  std::optional<Eigen::VectorXd> next_start_;
 
   // Episode state (part of snapshots).
   double potential_ = 0.0;
