@@ -100,6 +100,15 @@ SacLosses Sac::update(const Batch& b) {
 
 void Sac::save(CheckpointWriter& w) const {
   w.add_module("policy", *policy_);
+  save_training_state(w);
+}
+
+void Sac::load(CheckpointReader& r) {
+  r.load_module("policy", *policy_);
+  load_training_state(r);
+}
+
+void Sac::save_training_state(CheckpointWriter& w) const {
   w.add_module("q1", *q1_);
   w.add_module("q2", *q2_);
   w.add_module("q1_target", *q1_target_);
@@ -110,8 +119,7 @@ void Sac::save(CheckpointWriter& w) const {
   w.add_optimizer("alpha", *alpha_opt_);
 }
 
-void Sac::load(CheckpointReader& r) {
-  r.load_module("policy", *policy_);
+void Sac::load_training_state(CheckpointReader& r) {
   r.load_module("q1", *q1_);
   r.load_module("q2", *q2_);
   r.load_module("q1_target", *q1_target_);

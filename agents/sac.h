@@ -47,8 +47,12 @@ class Sac {
   GaussianPolicy& policy() { return policy_; }
   double alpha() const;
 
+  // Everything: policy, critics, targets, temperature, optimizers.
   void save(CheckpointWriter& writer) const;
   void load(CheckpointReader& reader);
+  // The same without the policy (which the caller checkpoints with the other shared networks).
+  void save_training_state(CheckpointWriter& writer) const;
+  void load_training_state(CheckpointReader& reader);
 
  private:
   SacOptions options_;

@@ -17,6 +17,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
+#include "agents/saved_policy.h"
 #include "envs/env.h"
 #include "envs/registry.h"
 #include "envs/rollout.h"
@@ -27,15 +28,19 @@
 namespace hlt {
 namespace {
 
-// The policy named on the command line. Learned policies are not wired in yet: "checkpoint:PATH" is the place
-// where the agents' torch policy plugs in (load it here and wrap it in a PolicySource).
+constexpr const char* kCheckpointPrefix = "checkpoint:";
+
+bool is_checkpoint(const std::string& spec) {
+  return spec.rfind(kCheckpointPrefix, 0) == 0;
+}
+
+// The policy named on the command line: a simple one, or the mean action of a policy trained by hlt_train.
 std::unique_ptr<PolicySource> make_policy(const std::string& spec, const Env& env, uint64_t seed) {
-  const std::string checkpoint = "checkpoint:";
-  if (spec.rfind(checkpoint, 0) == 0) {
-    throw Error(fmt::format(
-        "--policy {}: running a saved policy is not yet supported by hlt_rollout (the agents that write "
-        "checkpoints are not merged yet); use zero, random or constant:V",
-        spec));
+  if (is_checkpoint(spec)) {
+    SavedPolicy saved = load_saved_policy(spec.substr(std::string(kCheckpointPrefix).size()));
+    check(saved.env == env.name(), "--policy {}: the policy was trained on {}, not {}", spec, saved.env,
+          env.name());
+    return std::move(saved.source);
   }
   return make_simple_policy(spec, env.action_dim(), seed);
 }
@@ -122,7 +127,11 @@ struct Options {
   int height = 360;
 };
 
-int run(const Options& o) {
+int run(Options o, bool frame_skip_given) {
+  if (is_checkpoint(o.policy) && !frame_skip_given) {
+    // Act at the rate the policy was trained at unless told otherwise.
+    o.frame_skip = load_saved_policy(o.policy.substr(std::string(kCheckpointPrefix).size())).frame_skip;
+  }
   std::unique_ptr<Env> env = make_env(o.env);
   if (o.frame_skip != 1) env = std::make_unique<FrameSkip>(std::move(env), o.frame_skip);
   check(o.episodes >= 1, "--episodes must be at least 1, got {}", o.episodes);
@@ -246,7 +255,7 @@ int main(int argc, char** argv) {
     }
     hlt::check(!o.env.empty(), "--env is required; known environments: {}",
                fmt::join(hlt::env_names(), ", "));
-    return hlt::run(o);
+    return hlt::run(o, app.count("--frame-skip") > 0);
   } catch (const hlt::Error& e) {
     std::cerr << "error: " << e.what() << "\n";
     return 1;

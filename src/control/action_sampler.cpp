@@ -4,29 +4,106 @@
 
 #include <torch/torch.h>
 
-namespace hlt {
+#include "hlt/util/error.h"
 
-std::pair<at::Tensor, at::Tensor> PolicySampler::sample(const at::Tensor& states, const at::Tensor& plan_t,
-                                                        int64_t t) {
-  auto [mean, log_std] = policy_->forward(states);
-  const at::Tensor u = mean + log_std.exp() * torch::randn_like(mean);
-  const at::Tensor v = u.tanh();
-  return {v, GaussianPolicyImpl::squashed_log_prob(u, v, mean, log_std).squeeze(-1)};
+namespace hlt {
+namespace {
+
+const double kHalfLog2Pi = 0.5 * std::log(2.0 * M_PI);
+
+// The [rows, cols] block that starts `offset` elements into a contiguous tensor.
+template <typename T>
+Eigen::Map<RowMatrix<T>> block(const at::Tensor& t, int64_t offset, int64_t rows, int64_t cols) {
+  return Eigen::Map<RowMatrix<T>>(t.data_ptr<T>() + offset, rows, cols);
+}
+
+}  // namespace
+
+PolicySampler::PolicySampler(GaussianPolicy policy) : forward_(std::move(policy)) {}
+
+void PolicySampler::begin(int64_t samples, const at::Tensor& plan) {
+  forward_.prepare(samples);
+  eps_ = torch::randn({plan.size(0), plan.size(1), samples}, plan.options());
+  if (!log_std_.defined() || log_std_.sizes() != eps_.sizes() ||
+      log_std_.scalar_type() != eps_.scalar_type()) {
+    log_std_ = torch::empty_like(eps_);
+  }
+}
+
+void PolicySampler::sample(int64_t t, const at::Tensor& states, const at::Tensor& plan_t,
+                           at::Tensor& actions) {
+  forward_.forward(states);
+  dispatch_floating(actions, [&](auto tag) {
+    using T = decltype(tag);
+    const int64_t m = actions.size(0), K = actions.size(1);
+    const auto mean = row_map<T>(forward_.mean()).array();
+    const auto ls = row_map<T>(forward_.log_std()).array();
+    block<T>(log_std_, t * m * K, m, K) = ls.matrix();
+    // v = tanh(mu + sigma eps)
+    row_map<T>(actions) = (mean + ls.exp() * block<T>(eps_, t * m * K, m, K).array()).tanh().matrix();
+  });
+}
+
+at::Tensor PolicySampler::log_density(const at::Tensor& actions) {
+  const int64_t H = actions.size(0), m = actions.size(1), K = actions.size(2);
+  at::Tensor out = torch::empty({H, K}, actions.options());
+  dispatch_floating(actions, [&](auto tag) {
+    using T = decltype(tag);
+    for (int64_t t = 0; t < H; ++t) {
+      const auto eps = block<T>(eps_, t * m * K, m, K).array(),
+                 ls = block<T>(log_std_, t * m * K, m, K).array(),
+                 v = block<T>(actions, t * m * K, m, K).array();
+      // u - mu = sigma eps, so the Gaussian term is -eps^2 / 2 - log sigma - log(2 pi) / 2 per dimension; the
+      // tanh change of variables subtracts log(1 - v^2 + 1e-6).
+      const auto per_dim = T(-0.5) * eps.square() - ls - T(kHalfLog2Pi) - (T(1 + 1e-6) - v.square()).log();
+      block<T>(out, t * K, 1, K) = per_dim.colwise().sum().matrix();
+    }
+  });
+  return out;
+}
+
+FilteredNoiseSampler::FilteredNoiseSampler(double sigma, double filter) : sigma_(sigma), filter_(filter) {
+  check(sigma > 0, "MPPI noise sigma must be > 0, got {}", sigma);
+  check(filter >= 0 && filter < 1, "MPPI filter must be in [0, 1), got {}", filter);
 }
 
 void FilteredNoiseSampler::begin(int64_t samples, const at::Tensor& plan) {
-  eta_ = torch::zeros({samples, plan.size(1)}, plan.options());
+  z_ = torch::randn({plan.size(0), plan.size(1), samples}, plan.options());
+  if (!eta_.defined() || eta_.size(1) != samples || eta_.scalar_type() != plan.scalar_type()) {
+    eta_ = torch::empty({plan.size(1), samples}, plan.options());
+  }
+  dispatch_floating(eta_, [&](auto tag) {
+    using T = decltype(tag);
+    row_map<T>(eta_).setZero();
+  });
 }
 
-std::pair<at::Tensor, at::Tensor> FilteredNoiseSampler::sample(const at::Tensor& states,
-                                                               const at::Tensor& plan_t, int64_t t) {
-  const at::Tensor z = torch::randn_like(eta_);
-  eta_ = filter_ * eta_ + (1.0 - filter_) * sigma_ * z;
-  const at::Tensor v = (plan_t.unsqueeze(0) + eta_).clamp(-1.0, 1.0);
-  // log N(eps; 0, sigma^2) with eps = sigma z, summed over action dimensions.
-  const double log_norm = -std::log(sigma_) - 0.5 * std::log(2.0 * M_PI);
-  const at::Tensor log_p = (-0.5 * z.square() + log_norm).sum(-1);
-  return {v, log_p};
+void FilteredNoiseSampler::sample(int64_t t, const at::Tensor& states, const at::Tensor& plan_t,
+                                  at::Tensor& actions) {
+  dispatch_floating(actions, [&](auto tag) {
+    using T = decltype(tag);
+    const int64_t m = actions.size(0), K = actions.size(1);
+    auto eta = row_map<T>(eta_);
+    Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, 1>> a(plan_t.data_ptr<T>(), m);
+    eta = T(filter_) * eta + T((1.0 - filter_) * sigma_) * block<T>(z_, t * m * K, m, K);
+    row_map<T>(actions) = (eta.colwise() + a).array().max(T(-1)).min(T(1)).matrix();
+  });
+}
+
+at::Tensor FilteredNoiseSampler::log_density(const at::Tensor& actions) {
+  const int64_t H = actions.size(0), m = actions.size(1), K = actions.size(2);
+  at::Tensor out = torch::empty({H, K}, actions.options());
+  dispatch_floating(actions, [&](auto tag) {
+    using T = decltype(tag);
+    for (int64_t t = 0; t < H; ++t) {
+      block<T>(out, t * K, 1, K) =
+          (T(-0.5) * block<T>(z_, t * m * K, m, K).array().square() - T(std::log(sigma_) + kHalfLog2Pi))
+              .colwise()
+              .sum()
+              .matrix();
+    }
+  });
+  return out;
 }
 
 }  // namespace hlt

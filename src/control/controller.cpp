@@ -3,15 +3,22 @@
 #include <torch/torch.h>
 
 #include "hlt/control/policy_controller.h"
+#include "hlt/nn/batched_forward.h"
 #include "hlt/util/error.h"
 
 namespace hlt {
 
 at::Tensor Controller::act(const at::Tensor& state) {
   check(state.dim() == 1, "{}: state must be a vector, got {} dimensions", name(), state.dim());
-  at::Tensor action = compute_action(state);
+  at::Tensor action = compute_action(state).contiguous();
   diagnostics_.fell_back = false;
-  if (!torch::isfinite(action).all().item<bool>()) {
+  bool finite = true;
+  dispatch_floating(action, [&](auto tag) {
+    using T = decltype(tag);
+    finite = Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, 1>>(action.data_ptr<T>(), action.numel())
+                 .allFinite();
+  });
+  if (!finite) {
     // A NaN weight or model output must never reach the environment.
     diagnostics_.fell_back = true;
     ++diagnostics_.fallbacks;
@@ -26,7 +33,12 @@ at::Tensor Controller::act(const at::Tensor& state) {
     }
     action = fallback;
   }
-  return action.clamp(-1.0, 1.0);
+  dispatch_floating(action, [&](auto tag) {
+    using T = decltype(tag);
+    auto a = Eigen::Map<Eigen::Matrix<T, Eigen::Dynamic, 1>>(action.data_ptr<T>(), action.numel()).array();
+    a = a.max(T(-1)).min(T(1));
+  });
+  return action;
 }
 
 PolicyController::PolicyController(GaussianPolicy policy, bool deterministic)

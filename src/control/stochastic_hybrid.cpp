@@ -11,8 +11,8 @@ StochasticHybrid::StochasticHybrid(std::shared_ptr<ActionSampler> sampler, Dynam
                                    GaussianPolicy fallback_policy, std::string name)
     : Controller(std::move(fallback_policy)),
       sampler_(std::move(sampler)),
-      dynamics_(std::move(dynamics)),
-      reward_(std::move(reward)),
+      dynamics_(dynamics),
+      models_(std::move(dynamics), std::move(reward)),
       options_(options),
       name_(std::move(name)) {
   check(sampler_ != nullptr, "{}: needs an action sampler", name_);
@@ -22,47 +22,85 @@ StochasticHybrid::StochasticHybrid(std::shared_ptr<ActionSampler> sampler, Dynam
 }
 
 void StochasticHybrid::reset() {
-  const auto& p = dynamics_->fc1->weight;
-  plan_ = torch::zeros({options_.horizon, dynamics_->options().action_dim}, p.options().requires_grad(false));
+  const auto opts = dynamics_->fc1->weight.options().requires_grad(false);
+  if (plan_.defined() && plan_.scalar_type() == opts.dtype()) {
+    plan_.zero_();
+    return;
+  }
+  const int64_t H = options_.horizon, K = options_.samples, m = dynamics_->options().action_dim;
+  const int64_t n = dynamics_->options().state_dim;
+  // Buffers live as long as the controller; the per-step views into them are made once here.
+  plan_ = torch::zeros({H, m}, opts);
+  states_a_ = torch::empty({n, K}, opts);
+  states_b_ = torch::empty({n, K}, opts);
+  samples_ = torch::empty({H, m, K}, opts);
+  rewards_ = torch::empty({H, K}, opts);
+  weights_ = torch::empty({H, K}, opts);
+  plan_rows_.clear();
+  sample_rows_.clear();
+  reward_rows_.clear();
+  for (int64_t t = 0; t < H; ++t) {
+    plan_rows_.push_back(plan_[t]);
+    sample_rows_.push_back(samples_[t]);
+    reward_rows_.push_back(rewards_[t]);
+  }
 }
 
 at::Tensor StochasticHybrid::compute_action(const at::Tensor& state) {
   torch::InferenceMode guard;
   const int64_t H = options_.horizon, K = options_.samples, m = plan_.size(1);
-  // Warm start: the previous plan moved one step earlier, a zero action appended.
-  plan_ = torch::cat({plan_.narrow(0, 1, H - 1), torch::zeros({1, m}, plan_.options())});
+  const int64_t n = dynamics_->options().state_dim;
+  check(state.numel() == n, "{}: state has {} values, the model expects {}", name_, state.numel(), n);
+  models_.prepare(K);
+  const at::Tensor s0 =
+      state.scalar_type() == plan_.scalar_type() ? state.contiguous() : state.to(plan_.scalar_type());
 
-  at::Tensor s = state.to(plan_.scalar_type()).unsqueeze(0).expand({K, state.size(0)});
+  dispatch_floating(plan_, [&](auto tag) {
+    using T = decltype(tag);
+    // Warm start: the previous plan moved one step earlier, a zero action appended.
+    auto plan = row_map<T>(plan_);
+    if (H > 1) plan.topRows(H - 1) = plan.bottomRows(H - 1).eval();
+    plan.row(H - 1).setZero();
+    Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, 1>> s(s0.data_ptr<T>(), n);
+    row_map<T>(states_a_).colwise() = s;
+  });
+
+  // All K rollouts advance together: per step one sampler call and one model step on [K, .] batches.
   sampler_->begin(K, plan_);
-  std::vector<at::Tensor> actions, rewards, log_p;
-  actions.reserve(H);
-  rewards.reserve(H);
-  log_p.reserve(H);
+  at::Tensor* s = &states_a_;
+  at::Tensor* s_next = &states_b_;
   for (int64_t t = 0; t < H; ++t) {
-    auto [v, lp] = sampler_->sample(s, plan_[t], t);
-    rewards.push_back(reward_->forward(s, v).squeeze(-1));
-    s = dynamics_->forward(s, v);
-    actions.push_back(v);
-    log_p.push_back(lp);
+    sampler_->sample(t, *s, plan_rows_[t], sample_rows_[t]);
+    models_.step(*s, sample_rows_[t], *s_next, &reward_rows_[t]);
+    std::swap(s, s_next);
   }
-  // J_t^k: predicted reward to go from step t, [H, K].
-  const at::Tensor J = torch::stack(rewards).flip(0).cumsum(0).flip(0);
-  samples_ = torch::stack(actions);
-  log_density_ = torch::stack(log_p);
-  at::Tensor log_w = J / options_.lambda;
-  if (options_.density_in_weights) log_w = log_w + log_density_;
-  // Normalise in log space: subtracting the per-step max keeps exp() in range.
-  at::Tensor w = (log_w - std::get<0>(log_w.max(1, /*keepdim=*/true))).exp() + options_.weight_floor;
-  w = w / w.sum(1, /*keepdim=*/true);
-  // a_t += sum_k w_t^k (v_t^k - a_t), for all t at once: [H, 1, K] x [H, K, m].
-  const at::Tensor da = samples_ - plan_.unsqueeze(1);
-  plan_ = plan_ + torch::bmm(w.unsqueeze(1), da).squeeze(1);
-  weights_ = w;
-  at::Tensor action = plan_[0].clone();
-  if (!torch::isfinite(plan_).all().item<bool>()) {
-    // Do not carry a poisoned plan into the next step; the base class substitutes the fallback action.
-    plan_.zero_();
-  }
+  log_density_ = sampler_->log_density(samples_);
+
+  bool finite = true;
+  dispatch_floating(plan_, [&](auto tag) {
+    using T = decltype(tag);
+    // J_t^k: the predicted reward to go from step t.
+    RowMatrix<T> J = row_map<T>(rewards_);
+    for (int64_t t = H - 2; t >= 0; --t)
+      J.row(t) += J.row(t + 1);
+    // log w = J / lambda (+ log p(v)); normalise in log space: subtracting each step's max keeps exp() in
+    // range.
+    RowMatrix<T> log_w = J / T(options_.lambda);
+    if (options_.density_in_weights) log_w += row_map<T>(log_density_);
+    auto w = row_map<T>(weights_);
+    w = ((log_w.colwise() - log_w.rowwise().maxCoeff()).array().exp() + T(options_.weight_floor)).matrix();
+    w.array().colwise() /= w.rowwise().sum().array();
+    // a_t += sum_k w_t^k (v_t^k - a_t)
+    auto plan = row_map<T>(plan_);
+    for (int64_t t = 0; t < H; ++t) {
+      Eigen::Map<const RowMatrix<T>> v(samples_.data_ptr<T>() + t * m * K, m, K);
+      plan.row(t) += ((v.colwise() - plan.row(t).transpose()) * w.row(t).transpose()).transpose();
+    }
+    finite = plan.allFinite();
+  });
+  at::Tensor action = plan_rows_[0].clone();
+  // Do not carry a poisoned plan into the next step; the base class substitutes the fallback action.
+  if (!finite) plan_.zero_();
   return action;
 }
 

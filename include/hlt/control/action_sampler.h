@@ -1,13 +1,18 @@
 // Action samplers: the distribution the stochastic planner draws its K rollouts' actions from. The hybrid
 // controller samples from the policy; NN-MPPI samples low-pass-filtered Gaussian noise around the plan. Both
-// return each sample's log-density, which enters the planner's weights.
+// report each sample's log-density, which enters the planner's weights.
+//
+// A planning call is begin(), then sample() once per step for all K rollouts at once, then log_density().
+// Random numbers for the whole call are drawn in begin() (one tensor op), so the per-step work is a few
+// batched products and Eigen array expressions. Batches are feature-major (one column per rollout), as in
+// hlt/nn/batched_forward.h.
 #pragma once
 
 #include <cstdint>
-#include <utility>
 
 #include <ATen/core/Tensor.h>
 
+#include "hlt/nn/batched_forward.h"
 #include "hlt/nn/gaussian_policy.h"
 
 namespace hlt {
@@ -15,38 +20,40 @@ namespace hlt {
 class ActionSampler {
  public:
   virtual ~ActionSampler() = default;
-  // Called once per planning call before step 0, with the plan [H, m].
-  virtual void begin(int64_t samples, const at::Tensor& plan) {}
-  // Actions v [K, m] in [-1, 1] for step t from the rollouts' states [K, n] and the plan entry a_t [m], and
-  // their log-densities [K].
-  virtual std::pair<at::Tensor, at::Tensor> sample(const at::Tensor& states, const at::Tensor& plan_t,
-                                                   int64_t t) = 0;
+  // Starts a planning call with K samples around the plan [H, m].
+  virtual void begin(int64_t samples, const at::Tensor& plan) = 0;
+  // Writes step t's actions [m, K] (in [-1, 1]) into `actions` from the rollouts' states [n, K] and the plan
+  // entry a_t [m]. Tensors are contiguous, in the plan's dtype.
+  virtual void sample(int64_t t, const at::Tensor& states, const at::Tensor& plan_t, at::Tensor& actions) = 0;
+  // Log-densities [H, K] of the actions [H, m, K] drawn since begin().
+  virtual at::Tensor log_density(const at::Tensor& actions) = 0;
 };
 
 // v ~ pi(.|s) at every rollout's own state (closed loop); log-density with the tanh correction.
 class PolicySampler : public ActionSampler {
  public:
-  explicit PolicySampler(GaussianPolicy policy) : policy_(std::move(policy)) {}
-  std::pair<at::Tensor, at::Tensor> sample(const at::Tensor& states, const at::Tensor& plan_t,
-                                           int64_t t) override;
-  const GaussianPolicy& policy() const { return policy_; }
+  explicit PolicySampler(GaussianPolicy policy);
+  void begin(int64_t samples, const at::Tensor& plan) override;
+  void sample(int64_t t, const at::Tensor& states, const at::Tensor& plan_t, at::Tensor& actions) override;
+  at::Tensor log_density(const at::Tensor& actions) override;
 
  private:
-  GaussianPolicy policy_;
+  PolicyForward forward_;
+  at::Tensor eps_, log_std_;  // [H, m, K]: standard normal draws and the log-std each was scaled by
 };
 
-// NN-MPPI's noise: eps_t ~ N(0, sigma^2), eta_t = filter * eta_{t-1} + (1 - filter) * eps_t, v = clip(a_t +
-// eta_t); log-density of eps_t under N(0, sigma^2).
+// NN-MPPI's noise: z_t ~ N(0, 1), eta_t = filter * eta_{t-1} + (1 - filter) * sigma * z_t,
+// v = clip(a_t + eta_t, -1, 1); log-density of sigma z_t under N(0, sigma^2).
 class FilteredNoiseSampler : public ActionSampler {
  public:
-  FilteredNoiseSampler(double sigma, double filter) : sigma_(sigma), filter_(filter) {}
+  FilteredNoiseSampler(double sigma, double filter);
   void begin(int64_t samples, const at::Tensor& plan) override;
-  std::pair<at::Tensor, at::Tensor> sample(const at::Tensor& states, const at::Tensor& plan_t,
-                                           int64_t t) override;
+  void sample(int64_t t, const at::Tensor& states, const at::Tensor& plan_t, at::Tensor& actions) override;
+  at::Tensor log_density(const at::Tensor& actions) override;
 
  private:
   double sigma_, filter_;
-  at::Tensor eta_;
+  at::Tensor z_, eta_;
 };
 
 }  // namespace hlt

@@ -9,9 +9,13 @@
 // Without a policy (mu = 0, Sigma = I) it is the model-based deterministic baseline.
 #pragma once
 
+#include <optional>
+#include <vector>
+
 #include <Eigen/Core>
 
 #include "hlt/control/controller.h"
+#include "hlt/nn/batched_forward.h"
 #include "hlt/nn/dynamics_model.h"
 #include "hlt/nn/reward_model.h"
 
@@ -66,13 +70,21 @@ class DeterministicHybrid : public Controller {
   at::Tensor compute_action(const at::Tensor& state) override;
 
  private:
+  // rho_t as the action and the mode insertion gradient use it (clamped if configured).
+  Eigen::VectorXd adjoint_used(int64_t t) const;
+
   GaussianPolicy policy_;
   DynamicsModel dynamics_;
   RewardModel reward_;
+  ModelForward models_, mig_models_;  // batches of one (rollout) and two (mode insertion gradient)
+  std::optional<PolicyForward> policy_forward_;
   DeterministicHybridOptions options_;
   std::string name_;
   int64_t interactions_ = 0;
   AdjointTrace trace_;
+  at::Tensor X_, A_;                         // the rollout: states [H + 1, n], actions [H, m]
+  std::vector<at::Tensor> x_cols_, a_cols_;  // their rows as [n, 1] / [m, 1] batches of one
+  at::Tensor mig_states_, mig_actions_, mig_next_, mig_rewards_;
 };
 
 }  // namespace hlt

@@ -6,9 +6,11 @@
 #pragma once
 
 #include <memory>
+#include <vector>
 
 #include "hlt/control/action_sampler.h"
 #include "hlt/control/controller.h"
+#include "hlt/nn/batched_forward.h"
 #include "hlt/nn/dynamics_model.h"
 #include "hlt/nn/reward_model.h"
 
@@ -37,7 +39,7 @@ class StochasticHybrid : public Controller {
   const at::Tensor& plan() const { return plan_; }
   // The last call's weights [H, K], sampled actions [H, K, m] and their log-densities [H, K].
   const at::Tensor& weights() const { return weights_; }
-  const at::Tensor& samples() const { return samples_; }
+  at::Tensor samples() const { return samples_.permute({0, 2, 1}); }
   const at::Tensor& log_density() const { return log_density_; }
 
  protected:
@@ -46,10 +48,12 @@ class StochasticHybrid : public Controller {
  private:
   std::shared_ptr<ActionSampler> sampler_;
   DynamicsModel dynamics_;
-  RewardModel reward_;
+  ModelForward models_;
   StochasticHybridOptions options_;
   std::string name_;
-  at::Tensor plan_, weights_, samples_, log_density_;
+  at::Tensor plan_, weights_, samples_, log_density_, rewards_;
+  at::Tensor states_a_, states_b_;  // rollout state buffers [n, K] (feature-major)
+  std::vector<at::Tensor> plan_rows_, sample_rows_, reward_rows_;  // per-step views
 };
 
 }  // namespace hlt

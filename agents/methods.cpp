@@ -1,0 +1,124 @@
+#include "agents/methods.h"
+
+#include <functional>
+#include <map>
+
+#include "hlt/control/action_sampler.h"
+#include "hlt/control/deterministic_hybrid.h"
+#include "hlt/control/policy_controller.h"
+#include "hlt/control/stochastic_hybrid.h"
+#include "hlt/util/error.h"
+
+namespace hlt {
+namespace {
+
+const std::vector<MethodSpec>& methods() {
+  static const std::vector<MethodSpec> table = {
+#define HLT_METHOD(name, controller, planner, policy, models, description) \
+  {name, controller, planner, policy, models, description},
+#include "agents/method_list.inc"
+#undef HLT_METHOD
+  };
+  return table;
+}
+
+void require(bool present, const std::string& controller, const char* what) {
+  check(present, "controller '{}' needs a {}", controller, what);
+}
+
+StochasticHybridOptions stochastic_options(const Config& c) {
+  StochasticHybridOptions o;
+  o.horizon = c.get_int("planner.horizon");
+  o.samples = c.get_int("planner.samples");
+  o.lambda = c.get_double("planner.lambda");
+  o.density_in_weights = c.get_bool("planner.density_in_weights");
+  return o;
+}
+
+DeterministicHybridOptions deterministic_options(const Config& c, bool evaluation) {
+  DeterministicHybridOptions o;
+  o.horizon = c.get_int("planner.horizon");
+  o.clamp_adjoint = c.get_bool("deterministic.clamp_adjoint");
+  o.exploration_decay = c.get_double("deterministic.exploration_decay");
+  o.explore = !evaluation;
+  return o;
+}
+
+std::unique_ptr<Controller> make_policy_controller(const LearnedModels& m, const Config&, bool evaluation) {
+  require(!m.policy.is_empty(), "policy", "policy");
+  return std::make_unique<PolicyController>(m.policy, evaluation);
+}
+
+std::unique_ptr<Controller> make_stochastic_hybrid(const LearnedModels& m, const Config& c, bool) {
+  require(!m.policy.is_empty(), "stochastic_hybrid", "policy");
+  require(!m.dynamics.is_empty() && !m.reward.is_empty(), "stochastic_hybrid", "dynamics and reward model");
+  return std::make_unique<StochasticHybrid>(std::make_shared<PolicySampler>(m.policy), m.dynamics, m.reward,
+                                            stochastic_options(c), m.policy, "stochastic_hybrid");
+}
+
+std::unique_ptr<Controller> make_mppi(const LearnedModels& m, const Config& c, bool) {
+  require(!m.dynamics.is_empty() && !m.reward.is_empty(), "mppi", "dynamics and reward model");
+  auto sampler =
+      std::make_shared<FilteredNoiseSampler>(c.get_double("mppi.sigma"), c.get_double("mppi.filter"));
+  return std::make_unique<StochasticHybrid>(sampler, m.dynamics, m.reward, stochastic_options(c), nullptr,
+                                            "mppi");
+}
+
+std::unique_ptr<Controller> make_deterministic_hybrid(const LearnedModels& m, const Config& c,
+                                                      bool evaluation) {
+  require(!m.policy.is_empty(), "deterministic_hybrid", "policy");
+  require(!m.dynamics.is_empty() && !m.reward.is_empty(), "deterministic_hybrid",
+          "dynamics and reward model");
+  return std::make_unique<DeterministicHybrid>(m.policy, m.dynamics, m.reward,
+                                               deterministic_options(c, evaluation), "deterministic_hybrid");
+}
+
+std::unique_ptr<Controller> make_mpc_deterministic(const LearnedModels& m, const Config& c, bool evaluation) {
+  require(!m.dynamics.is_empty() && !m.reward.is_empty(), "mpc_deterministic", "dynamics and reward model");
+  return std::make_unique<DeterministicHybrid>(nullptr, m.dynamics, m.reward,
+                                               deterministic_options(c, evaluation), "mpc_deterministic");
+}
+
+using Factory = std::function<std::unique_ptr<Controller>(const LearnedModels&, const Config&, bool)>;
+
+const std::map<std::string, Factory>& controllers() {
+  static const std::map<std::string, Factory> table = {
+#define HLT_CONTROLLER(name, factory) {name, factory},
+#include "agents/controller_list.inc"
+#undef HLT_CONTROLLER
+  };
+  return table;
+}
+
+}  // namespace
+
+const MethodSpec& find_method(const std::string& name) {
+  for (const auto& m : methods()) {
+    if (m.name == name) return m;
+  }
+  throw Error(fmt::format("unknown method '{}'; known methods: {}", name, fmt::join(method_names(), ", ")));
+}
+
+std::vector<std::string> method_names() {
+  std::vector<std::string> names;
+  for (const auto& m : methods())
+    names.push_back(m.name);
+  return names;
+}
+
+std::unique_ptr<Controller> make_controller(const std::string& name, const LearnedModels& models,
+                                            const Config& config, bool evaluation) {
+  auto it = controllers().find(name);
+  check(it != controllers().end(), "unknown controller '{}'; known controllers: {}", name,
+        fmt::join(controller_names(), ", "));
+  return it->second(models, config, evaluation);
+}
+
+std::vector<std::string> controller_names() {
+  std::vector<std::string> names;
+  for (const auto& kv : controllers())
+    names.push_back(kv.first);
+  return names;
+}
+
+}  // namespace hlt

@@ -1,0 +1,47 @@
+// hlt::ModelLearner: trains the learned dynamics and reward models together on the joint loss
+// dynamics NLL + reward_weight * reward TD loss (paper appendix, "Models"), one Adam optimizer.
+#pragma once
+
+#include <memory>
+
+#include <torch/optim/adam.h>
+
+#include "hlt/data/replay_buffer.h"
+#include "hlt/nn/dynamics_model.h"
+#include "hlt/nn/reward_model.h"
+
+namespace hlt {
+
+class CheckpointWriter;
+class CheckpointReader;
+
+struct ModelLearnerOptions {
+  double lr = 3e-3;
+  double reward_gamma = 0.95;
+  double reward_weight = 0.5;
+};
+
+struct ModelLosses {
+  double dynamics = 0;  // Gaussian NLL per state dimension
+  double reward = 0;    // TD loss
+};
+
+class ModelLearner {
+ public:
+  ModelLearner(DynamicsModel dynamics, RewardModel reward, const ModelLearnerOptions& options);
+  ModelLosses update(const Batch& batch);
+  // Both models and the optimizer.
+  void save(CheckpointWriter& writer) const;
+  void load(CheckpointReader& reader);
+  // The optimizer alone (the caller checkpoints the models with the other shared networks).
+  void save_training_state(CheckpointWriter& writer) const;
+  void load_training_state(CheckpointReader& reader);
+
+ private:
+  ModelLearnerOptions options_;
+  DynamicsModel dynamics_;
+  RewardModel reward_;
+  std::unique_ptr<torch::optim::Adam> optimizer_;
+};
+
+}  // namespace hlt

@@ -1,0 +1,61 @@
+#include "agents/saved_policy.h"
+
+#include <torch/torch.h>
+
+#include "hlt/core/checkpoint.h"
+#include "hlt/nn/gaussian_policy.h"
+#include "hlt/util/error.h"
+
+namespace hlt {
+namespace {
+
+class CheckpointPolicy : public PolicySource {
+ public:
+  CheckpointPolicy(GaussianPolicy policy, std::string description)
+      : policy_(std::move(policy)), description_(std::move(description)) {}
+  std::string describe() const override { return description_; }
+  Eigen::VectorXd act(const Eigen::VectorXd& observation) override {
+    torch::InferenceMode guard;
+    const at::Tensor s =
+        torch::from_blob(const_cast<double*>(observation.data()), {1, observation.size()}, torch::kFloat64)
+            .to(torch::kFloat32);
+    const at::Tensor a = policy_->mean_action(s).to(torch::kFloat64).contiguous();
+    return Eigen::Map<const Eigen::VectorXd>(a.data_ptr<double>(), a.numel());
+  }
+
+ private:
+  GaussianPolicy policy_;
+  std::string description_;
+};
+
+}  // namespace
+
+SavedPolicy load_saved_policy(const std::string& path) {
+  CheckpointReader r(path);
+  SavedPolicy out;
+  out.env = r.get_string("env");
+  out.method = r.get_string("method");
+  out.frame_skip = static_cast<int>(r.get_int("frame_skip"));
+  check(r.has("policy_hidden"), "checkpoint {} holds no policy (it was written by method '{}')", path,
+        out.method);
+  const at::Tensor hidden = r.tensor("policy_hidden");
+  GaussianPolicyOptions o;
+  o.hidden.assign(hidden.data_ptr<int64_t>(), hidden.data_ptr<int64_t>() + hidden.numel());
+  o.mean_activation = parse_activation(r.get_string("policy_activation"));
+  // The observation and action sizes are read off the stored first and last layers.
+  torch::Tensor w_in, w_out;
+  auto& archive = r.archive("module.policy");
+  check(archive.try_read("mean.0.weight", w_in) &&
+            archive.try_read(fmt::format("mean.{}.weight", o.hidden.size()), w_out),
+        "checkpoint {}: the policy's layers are missing", path);
+  o.state_dim = w_in.size(1);
+  o.action_dim = w_out.size(0);
+  GaussianPolicy policy(o);
+  r.load_module("policy", *policy);
+  policy->eval();
+  out.source = std::make_unique<CheckpointPolicy>(
+      policy, fmt::format("policy mean from {} ({} on {})", path, out.method, out.env));
+  return out;
+}
+
+}  // namespace hlt

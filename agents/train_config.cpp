@@ -1,0 +1,60 @@
+#include "agents/train_config.h"
+
+#include "agents/methods.h"
+#include "envs/registry.h"
+
+namespace hlt {
+
+Config make_train_config() {
+  Config c;
+  const int64_t big = 1'000'000'000;
+  c.add_string("env", "cartpole_swingup", "environment name", env_names())
+      .add_string("method", "hybrid-stochastic", "training method", method_names())
+      .add_int("seed", 0, "run seed (torch, replay sampling, environment resets, evaluation)", 0, big)
+      .add_int("threads", 1, "LibTorch intra-op threads (1 is fastest for these networks and reproducible)",
+               1, 64)
+      .add_int("train.agent_steps", 10000, "agent steps to train for (each is frame_skip simulator steps)", 1,
+               big)
+      .add_int("train.frame_skip", 4,
+               "simulator steps per agent step (the action is repeated, rewards summed)", 1, 100)
+      .add_int("train.batch_size", 128, "minibatch size for every update", 1, 65536)
+      .add_int("train.update_after", 128, "transitions stored before updates start", 1, big)
+      .add_int("train.sac_updates", 1, "SAC updates per agent step", 0, 100)
+      .add_int("train.model_updates", 5, "dynamics + reward model updates per agent step", 0, 100)
+      .add_int("train.replay_capacity", 1000000, "replay buffer capacity (transitions)", 1, 100000000)
+      .add_int("eval.every", 1000, "agent steps between evaluations (0: never)", 0, big)
+      .add_int("eval.episodes", 5, "episodes per evaluation", 1, 1000)
+      .add_bool(
+          "eval.components", true,
+          "for hybrid methods also evaluate the policy alone and the model-based planner alone (Fig. 4)")
+      .add_int("checkpoint.every", 5000, "agent steps between checkpoints (written at the next episode end)",
+               1, big)
+      .add_int("model.hidden", 200, "dynamics model hidden width", 1, 100000)
+      .add_string("model.activation", "sin", "dynamics model hidden activation", {"sin", "relu"})
+      .add_int("model.reward_hidden", 200, "reward model hidden width (two layers)", 1, 100000)
+      .add_double("model.lr", 3e-3, "Adam learning rate of the models", 1e-8, 1.0)
+      .add_double("model.reward_gamma", 0.95,
+                  "discount of the reward model's TD target (0: plain regression)", 0.0, 1.0)
+      .add_double("model.reward_weight", 0.5, "weight of the reward TD loss in the joint model loss", 0.0,
+                  1000.0)
+      .add_int_list("policy.hidden", {128}, "policy hidden layer widths (both heads)", 1, 100000)
+      .add_string("policy.activation", "sin", "policy mean head hidden activation", {"sin", "relu"})
+      .add_double("sac.gamma", 0.99, "SAC discount", 0.0, 1.0)
+      .add_double("sac.tau", 0.005, "SAC target critic Polyak factor", 0.0, 1.0)
+      .add_double("sac.lr", 3e-4, "Adam learning rate of critics, policy and temperature", 1e-8, 1.0)
+      .add_int_list("sac.q_hidden", {256, 256}, "critic hidden layer widths", 1, 100000)
+      .add_double("sac.initial_alpha", 1.0, "initial entropy temperature", 1e-8, 1e4)
+      .add_int("planner.horizon", 5, "planning horizon H (agent steps)", 1, 1000)
+      .add_int("planner.samples", 20, "rollouts K of the stochastic planners", 1, 100000)
+      .add_double("planner.lambda", 0.1, "temperature lambda of the stochastic planners", 1e-9, 1e12)
+      .add_bool("planner.density_in_weights", true, "include log p(v) in the stochastic planner's weights")
+      .add_double("mppi.sigma", 0.3, "NN-MPPI noise standard deviation", 1e-6, 10.0)
+      .add_double("mppi.filter", 0.5, "NN-MPPI low-pass filter coefficient (eta = f eta + (1 - f) eps)", 0.0,
+                  0.999)
+      .add_bool("deterministic.clamp_adjoint", false, "clamp rho to [-1, 1] before use (the authors' choice)")
+      .add_double("deterministic.exploration_decay", 0.999,
+                  "exploration noise std = decay^t, t counting environment interactions", 0.0, 1.0);
+  return c;
+}
+
+}  // namespace hlt

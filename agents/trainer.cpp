@@ -1,0 +1,440 @@
+#include "agents/trainer.h"
+
+#include <ATen/CPUGeneratorImpl.h>
+#include <torch/torch.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+
+#include "agents/methods.h"
+#include "agents/model_learner.h"
+#include "agents/sac.h"
+#include "agents/train_config.h"
+#include "envs/registry.h"
+#include "hlt/control/deterministic_hybrid.h"
+#include "hlt/core/checkpoint.h"
+#include "hlt/core/runtime.h"
+#include "hlt/data/replay_buffer.h"
+#include "hlt/util/error.h"
+#include "hlt/util/files.h"
+#include "hlt/util/progress_bar.h"
+#include "hlt/util/random.h"
+#include "hlt/util/scalar_logger.h"
+
+namespace hlt {
+namespace fs = std::filesystem;
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// Seed streams derived from the run seed (see derive_seed).
+enum Stream : uint64_t { kReplay = 1, kTrainEpisode = 2, kEvalEpisode = 3 };
+
+at::Tensor to_tensor(const Eigen::VectorXd& v) {
+  return torch::from_blob(const_cast<double*>(v.data()), {v.size()}, torch::kFloat64).to(torch::kFloat32);
+}
+
+Eigen::VectorXd to_eigen(const at::Tensor& t) {
+  const at::Tensor d = t.to(torch::kFloat64).contiguous();
+  return Eigen::Map<const Eigen::VectorXd>(d.data_ptr<double>(), d.numel());
+}
+
+struct Stats {
+  double sum = 0;
+  int64_t count = 0;
+  void add(double x) {
+    sum += x;
+    ++count;
+  }
+  double mean() const { return count ? sum / count : std::nan(""); }
+};
+
+}  // namespace
+
+struct Trainer::Impl {
+  Config config;
+  std::string dir;
+  const MethodSpec* method = nullptr;
+  uint64_t seed = 0;
+  std::unique_ptr<FrameSkip> env, eval_env;
+  LearnedModels models;
+  std::unique_ptr<Sac> sac;
+  std::unique_ptr<ModelLearner> learner;
+  std::unique_ptr<ReplayBuffer> buffer;
+  std::unique_ptr<Controller> controller;
+  std::vector<std::pair<std::string, std::unique_ptr<Controller>>> evaluators;  // label, controller
+  std::unique_ptr<ScalarLogger> log;
+
+  // Counters (checkpointed).
+  int64_t agent_steps = 0, env_steps = 0, episodes = 0, evaluations = 0;
+  double wall_before = 0;  // seconds spent in earlier sessions of this run
+  Clock::time_point session_start = Clock::now();
+  int64_t next_checkpoint = 0;
+
+  // The current episode.
+  bool need_reset = true;
+  Eigen::VectorXd obs;
+  struct Pending {
+    Eigen::VectorXd s, a, s2;
+    double r = 0;
+    bool valid = false;
+  } pending;
+  double ep_return = 0;
+  int64_t ep_env_steps = 0, ep_agent_steps = 0, ep_fallbacks_start = 0;
+  Stats ep_mig, critic_loss, actor_loss, alpha, entropy, dyn_loss, rew_loss;
+  double ep_act_seconds = 0, ep_update_seconds = 0, ep_eval_seconds = 0;
+  Clock::time_point ep_start;
+  double last_return = std::nan(""), last_eval = std::nan("");
+
+  double wall_time() const { return wall_before + seconds_since(session_start); }
+
+  void build() {
+    seed = static_cast<uint64_t>(config.get_int("seed"));
+    set_torch_threads(static_cast<int>(config.get_int("threads")));
+    seed_torch(seed);
+    method = &find_method(config.get_string("method"));
+    const std::string env_name = config.get_string("env");
+    const int k = static_cast<int>(config.get_int("train.frame_skip"));
+    env = std::make_unique<FrameSkip>(make_env(env_name), k);
+    eval_env = std::make_unique<FrameSkip>(make_env(env_name), k);
+    const int64_t n = env->observation_dim(), m = env->action_dim();
+
+    if (method->trains_policy) {
+      GaussianPolicyOptions po;
+      po.state_dim = n;
+      po.action_dim = m;
+      po.hidden = config.get_int_list("policy.hidden");
+      po.mean_activation = parse_activation(config.get_string("policy.activation"));
+      models.policy = GaussianPolicy(po);
+      SacOptions so;
+      so.gamma = config.get_double("sac.gamma");
+      so.tau = config.get_double("sac.tau");
+      so.q_lr = so.policy_lr = so.alpha_lr = config.get_double("sac.lr");
+      so.q_hidden = config.get_int_list("sac.q_hidden");
+      so.initial_alpha = config.get_double("sac.initial_alpha");
+      sac = std::make_unique<Sac>(models.policy, n, m, so);
+    }
+    if (method->trains_models) {
+      models.dynamics = DynamicsModel(DynamicsModelOptions{
+          n, m, config.get_int("model.hidden"), parse_activation(config.get_string("model.activation"))});
+      models.reward = RewardModel(RewardModelOptions{n, m, config.get_int("model.reward_hidden")});
+      ModelLearnerOptions mo;
+      mo.lr = config.get_double("model.lr");
+      mo.reward_gamma = config.get_double("model.reward_gamma");
+      mo.reward_weight = config.get_double("model.reward_weight");
+      learner = std::make_unique<ModelLearner>(models.dynamics, models.reward, mo);
+    }
+    buffer = std::make_unique<ReplayBuffer>(config.get_int("train.replay_capacity"), n, m,
+                                            derive_seed(seed, kReplay));
+    controller = make_controller(method->controller, models, config, /*evaluation=*/false);
+    evaluators.emplace_back("", make_controller(method->controller, models, config, /*evaluation=*/true));
+    if (config.get_bool("eval.components") && method->trains_policy && method->trains_models) {
+      evaluators.emplace_back("policy", make_controller("policy", models, config, true));
+      evaluators.emplace_back("planner", make_controller(method->planner_controller, models, config, true));
+    }
+    next_checkpoint = config.get_int("checkpoint.every");
+  }
+
+  at::Tensor act(Controller& c, const Eigen::VectorXd& state) {
+    if (auto* det = dynamic_cast<DeterministicHybrid*>(&c)) det->set_interactions(env_steps);
+    return c.act(to_tensor(state));
+  }
+
+  void begin_episode() {
+    obs = env->reset(derive_seed(seed, kTrainEpisode) ^ static_cast<uint64_t>(episodes));
+    controller->reset();
+    need_reset = false;
+    ep_return = 0;
+    ep_env_steps = ep_agent_steps = 0;
+    ep_fallbacks_start = controller->diagnostics().fallbacks;
+    ep_mig = critic_loss = actor_loss = alpha = entropy = dyn_loss = rew_loss = Stats{};
+    ep_act_seconds = ep_update_seconds = ep_eval_seconds = 0;
+    ep_start = Clock::now();
+  }
+
+  void step() {
+    if (need_reset) begin_episode();
+    auto t0 = Clock::now();
+    const Eigen::VectorXd a = to_eigen(act(*controller, obs));
+    ep_act_seconds += seconds_since(t0);
+    const double mig = controller->diagnostics().mode_insertion_gradient;
+    if (std::isfinite(mig)) ep_mig.add(mig);
+    if (pending.valid) {
+      // The previous transition's next action a' is the one just chosen.
+      buffer->add(pending.s.data(), pending.a.data(), pending.r, pending.s2.data(), a.data(), false);
+      pending.valid = false;
+    }
+    const StepResult res = env->step(a);
+    if (!res.failure.empty()) fmt::print(stderr, "warning: {}\n", res.failure);
+    ++agent_steps;
+    ++ep_agent_steps;
+    env_steps += env->last_step_frames();
+    ep_env_steps += env->last_step_frames();
+    ep_return += res.reward;
+    if (res.terminated) {
+      buffer->add(obs.data(), a.data(), res.reward, res.observation.data(), a.data(), true);
+    } else if (res.truncated) {
+      // Cut by the time limit: s' is not terminal, so its next action is the controller's choice there.
+      t0 = Clock::now();
+      const Eigen::VectorXd a2 = to_eigen(act(*controller, res.observation));
+      ep_act_seconds += seconds_since(t0);
+      buffer->add(obs.data(), a.data(), res.reward, res.observation.data(), a2.data(), false);
+    } else {
+      pending = {obs, a, res.observation, res.reward, true};
+    }
+    obs = res.observation;
+
+    t0 = Clock::now();
+    update();
+    ep_update_seconds += seconds_since(t0);
+
+    const int64_t eval_every = config.get_int("eval.every");
+    if (eval_every > 0 && agent_steps % eval_every == 0) {
+      t0 = Clock::now();
+      evaluate();
+      ep_eval_seconds += seconds_since(t0);
+    }
+    if (res.done()) end_episode();
+  }
+
+  void update() {
+    if (buffer->size() < config.get_int("train.update_after")) return;
+    const int64_t batch = config.get_int("train.batch_size");
+    if (sac) {
+      for (int64_t i = 0; i < config.get_int("train.sac_updates"); ++i) {
+        const SacLosses l = sac->update(buffer->sample(batch));
+        critic_loss.add(l.critic);
+        actor_loss.add(l.actor);
+        alpha.add(l.alpha);
+        entropy.add(l.entropy);
+      }
+    }
+    if (learner) {
+      for (int64_t i = 0; i < config.get_int("train.model_updates"); ++i) {
+        const ModelLosses l = learner->update(buffer->sample(batch));
+        dyn_loss.add(l.dynamics);
+        rew_loss.add(l.reward);
+      }
+    }
+  }
+
+  void log_if(const std::string& tag, const Stats& s) {
+    if (s.count) log->log(env_steps, tag, s.mean());
+  }
+
+  void end_episode() {
+    need_reset = true;
+    ++episodes;
+    last_return = ep_return;
+    // Training time only: evaluations that ran during the episode are not part of an agent step's cost.
+    const double seconds = seconds_since(ep_start) - ep_eval_seconds;
+    log->log(env_steps, "train/episode_return", ep_return);
+    log->log(env_steps, "train/episode_length", static_cast<double>(ep_env_steps));
+    log->log(env_steps, "train/agent_steps", static_cast<double>(agent_steps));
+    log->log(env_steps, "train/episodes", static_cast<double>(episodes));
+    log->log(env_steps, "train/fallbacks",
+             static_cast<double>(controller->diagnostics().fallbacks - ep_fallbacks_start));
+    log_if("train/mode_insertion_gradient", ep_mig);
+    log_if("loss/critic", critic_loss);
+    log_if("loss/actor", actor_loss);
+    log_if("sac/alpha", alpha);
+    log_if("sac/entropy", entropy);
+    log_if("loss/dynamics", dyn_loss);
+    log_if("loss/reward", rew_loss);
+    log->log(env_steps, "time/wall_seconds", wall_time());
+    log->log(env_steps, "time/agent_step_ms", 1e3 * seconds / ep_agent_steps);
+    log->log(env_steps, "time/act_ms", 1e3 * ep_act_seconds / ep_agent_steps);
+    log->log(env_steps, "time/update_ms", 1e3 * ep_update_seconds / ep_agent_steps);
+    if (agent_steps >= next_checkpoint) {
+      save_checkpoint();
+      const int64_t every = config.get_int("checkpoint.every");
+      next_checkpoint = (agent_steps / every + 1) * every;
+    }
+  }
+
+  void evaluate() {
+    const int64_t episodes_per_eval = config.get_int("eval.episodes");
+    for (auto& [label, ctrl] : evaluators) {
+      std::vector<double> returns;
+      for (int64_t e = 0; e < episodes_per_eval; ++e) {
+        // The same start states at every evaluation, so curves compare like with like.
+        Eigen::VectorXd s = eval_env->reset(derive_seed(seed, kEvalEpisode) ^ static_cast<uint64_t>(e));
+        ctrl->reset();
+        double total = 0;
+        while (true) {
+          const StepResult r = eval_env->step(to_eigen(act(*ctrl, s)));
+          total += r.reward;
+          s = r.observation;
+          if (r.done()) break;
+        }
+        returns.push_back(total);
+      }
+      double mean = 0, var = 0;
+      for (double x : returns)
+        mean += x / returns.size();
+      for (double x : returns)
+        var += (x - mean) * (x - mean) / returns.size();
+      const std::string prefix = label.empty() ? "eval/" : "eval/" + label + "_";
+      log->log(env_steps, prefix + "return_mean", mean);
+      log->log(env_steps, prefix + "return_std", std::sqrt(var));
+      if (label.empty()) last_eval = mean;
+    }
+    ++evaluations;
+  }
+
+  std::string path(const char* file) const { return (fs::path(dir) / file).string(); }
+
+  // What a tool needs to run the trained networks: config, counters, policy architecture and weights.
+  void add_networks(CheckpointWriter& w) const {
+    w.add_string("config", config.to_yaml());
+    w.add_string("env", config.get_string("env"));
+    w.add_string("method", config.get_string("method"));
+    w.add_int("frame_skip", config.get_int("train.frame_skip"));
+    w.add_int("agent_steps", agent_steps);
+    w.add_int("env_steps", env_steps);
+    w.add_int("episodes", episodes);
+    w.add_int("evaluations", evaluations);
+    w.add_int("next_checkpoint", next_checkpoint);
+    w.add_tensor("wall_seconds", torch::tensor({wall_time()}, torch::kFloat64));
+    if (models.policy) {
+      // Enough to rebuild the policy without the run's config (hlt_rollout --policy checkpoint:PATH).
+      w.add_tensor("policy_hidden", torch::tensor(config.get_int_list("policy.hidden"), torch::kInt64));
+      w.add_string("policy_activation", config.get_string("policy.activation"));
+      w.add_module("policy", *models.policy);
+    }
+    if (models.dynamics) {
+      w.add_module("dynamics", *models.dynamics);
+      w.add_module("reward", *models.reward);
+    }
+  }
+
+  // Everything a resumed run needs; written only at episode ends, where no transition is pending.
+  void save_checkpoint() {
+    CheckpointWriter w;
+    add_networks(w);
+    w.add_tensor("torch_rng", at::detail::getDefaultCPUGenerator().get_state());
+    if (sac) sac->save_training_state(w);
+    if (learner) learner->save_training_state(w);
+    buffer->save(w.archive("replay"));
+    w.save(path(kCheckpointFile));
+  }
+
+  // The networks at the end of the run (which may end mid-episode), for rollouts and evaluation.
+  void save_final() {
+    CheckpointWriter w;
+    add_networks(w);
+    w.save(path(kFinalFile));
+  }
+
+  void load_checkpoint() {
+    CheckpointReader r(path(kCheckpointFile));
+    for (const char* key : {"env", "method"}) {
+      check(r.get_string(key) == config.get_string(key),
+            "{}: checkpoint was written by {} '{}', config says '{}'", dir, key, r.get_string(key),
+            config.get_string(key));
+    }
+    // Everything but the step budget must match the run that wrote the checkpoint.
+    Config stored = make_train_config();
+    stored.merge_yaml(r.get_string("config"), r.path());
+    stored.set("train.agent_steps", std::to_string(config.get_int("train.agent_steps")));
+    check(stored.to_yaml() == config.to_yaml(), "{}: {} does not match the checkpoint's config", dir,
+          kConfigFile);
+    agent_steps = r.get_int("agent_steps");
+    env_steps = r.get_int("env_steps");
+    episodes = r.get_int("episodes");
+    evaluations = r.get_int("evaluations");
+    next_checkpoint = r.get_int("next_checkpoint");
+    wall_before = r.tensor("wall_seconds").item<double>();
+    at::Generator generator = at::detail::getDefaultCPUGenerator();
+    generator.set_state(r.tensor("torch_rng"));
+    if (models.policy) r.load_module("policy", *models.policy);
+    if (models.dynamics) {
+      r.load_module("dynamics", *models.dynamics);
+      r.load_module("reward", *models.reward);
+    }
+    if (sac) sac->load_training_state(r);
+    if (learner) learner->load_training_state(r);
+    buffer->load(r.archive("replay"));
+  }
+};
+
+Trainer::Trainer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Trainer::~Trainer() = default;
+
+const Config& Trainer::config() const {
+  return impl_->config;
+}
+const std::string& Trainer::run_dir() const {
+  return impl_->dir;
+}
+
+std::unique_ptr<Trainer> Trainer::create(const Config& config, const std::string& run_dir) {
+  ensure_writable_directory(run_dir);
+  for (const char* f : {kConfigFile, kLogFile, kCheckpointFile}) {
+    check(!fs::exists(fs::path(run_dir) / f),
+          "{} already holds a run ({} exists); resume it with --resume {} or "
+          "choose another --out",
+          run_dir, f, run_dir);
+  }
+  auto impl = std::make_unique<Impl>();
+  impl->config = config;
+  impl->dir = run_dir;
+  impl->build();
+  impl->config.save(impl->path(kConfigFile));
+  impl->log = std::make_unique<ScalarLogger>(impl->path(kLogFile));
+  return std::unique_ptr<Trainer>(new Trainer(std::move(impl)));
+}
+
+std::unique_ptr<Trainer> Trainer::resume(const std::string& run_dir, std::optional<int64_t> agent_steps) {
+  const fs::path cfg = fs::path(run_dir) / kConfigFile;
+  check(fs::is_directory(run_dir), "--resume {}: no such directory", run_dir);
+  check(fs::exists(cfg), "--resume {}: not a run directory ({} is missing)", run_dir, kConfigFile);
+  auto impl = std::make_unique<Impl>();
+  impl->dir = run_dir;
+  impl->config = make_train_config();
+  impl->config.load_file(cfg.string());
+  if (agent_steps) impl->config.set("train.agent_steps", std::to_string(*agent_steps), "--steps");
+  impl->build();
+  const std::string log_path = impl->path(kLogFile);
+  if (fs::exists(impl->path(kCheckpointFile))) {
+    impl->load_checkpoint();
+    if (fs::exists(log_path)) ScalarLogger::truncate_after(log_path, impl->env_steps);
+  } else if (fs::exists(log_path)) {
+    // Killed before its first checkpoint: start over, keeping nothing the new run would not write again.
+    ScalarLogger::truncate_after(log_path, -1);
+  }
+  impl->config.save(cfg.string());
+  impl->log = std::make_unique<ScalarLogger>(log_path);
+  return std::unique_ptr<Trainer>(new Trainer(std::move(impl)));
+}
+
+void Trainer::run(bool progress) {
+  Impl& s = *impl_;
+  const int64_t total = s.config.get_int("train.agent_steps");
+  if (s.agent_steps >= total) {
+    fmt::print(stderr, "{}: already trained for {} agent steps\n", s.dir, s.agent_steps);
+    return;
+  }
+  ProgressBar bar(s.agent_steps, total, progress);
+  if (s.agent_steps == 0 && s.config.get_int("eval.every") > 0) s.evaluate();
+  while (s.agent_steps < total) {
+    s.step();
+    bar.set("return", s.last_return);
+    bar.set("eval", s.last_eval);
+    bar.update(s.agent_steps);
+  }
+  bar.finish();
+  // A final evaluation if the last step did not just have one; the final checkpoint only at an episode end,
+  // so that a resumed (extended) run continues exactly.
+  const int64_t every = s.config.get_int("eval.every");
+  if (every > 0 && s.agent_steps % every != 0) s.evaluate();
+  if (s.need_reset) s.save_checkpoint();
+  s.save_final();
+}
+
+}  // namespace hlt

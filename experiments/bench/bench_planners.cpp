@@ -1,0 +1,197 @@
+// Planner and learner costs at the paper's network sizes, one thread: one planning call of each controller,
+// the matrix products each planner cannot avoid (its floor), a SAC update and a model update.
+//
+// Sizes: (n=5, m=1, K=20, H=5) is the cart-pole swing-up (sin networks); (n=26, m=6, K=60, H=10) is the
+// half-cheetah (ReLU networks). Dynamics hidden 200, reward 200 x 200, policy 128, critics 2 x 256.
+#include <benchmark/benchmark.h>
+#include <torch/torch.h>
+
+#include "agents/model_learner.h"
+#include "agents/sac.h"
+#include "hlt/control/action_sampler.h"
+#include "hlt/control/deterministic_hybrid.h"
+#include "hlt/control/stochastic_hybrid.h"
+#include "hlt/core/runtime.h"
+
+namespace hlt {
+namespace {
+
+struct Setup {
+  int64_t n, m, K, H;
+  DynamicsModel dynamics{nullptr};
+  RewardModel reward{nullptr};
+  GaussianPolicy policy{nullptr};
+  at::Tensor state;
+};
+
+Setup make_setup(const benchmark::State& st) {
+  set_torch_threads(1);
+  torch::manual_seed(0);
+  Setup s{st.range(0), st.range(1), st.range(2), st.range(3)};
+  const Activation act = s.n <= 6 ? Activation::kSin : Activation::kRelu;
+  s.dynamics = DynamicsModel(DynamicsModelOptions{s.n, s.m, 200, act});
+  s.reward = RewardModel(RewardModelOptions{s.n, s.m, 200});
+  s.policy = GaussianPolicy(GaussianPolicyOptions{s.n, s.m, {128}, act});
+  s.state = torch::randn({s.n});
+  return s;
+}
+
+void planner_args(benchmark::internal::Benchmark* b) {
+  b->ArgNames({"n", "m", "K", "H"});
+  b->Args({5, 1, 20, 5});
+  b->Args({26, 6, 60, 10});
+  b->Unit(benchmark::kMicrosecond);
+}
+
+void StochasticHybridBench(benchmark::State& st) {
+  Setup s = make_setup(st);
+  StochasticHybrid c(std::make_shared<PolicySampler>(s.policy), s.dynamics, s.reward,
+                     StochasticHybridOptions{s.H, s.K, 0.1, true, 1e-5}, s.policy);
+  for (auto _ : st)
+    benchmark::DoNotOptimize(c.act(s.state));
+}
+
+void MPPIBench(benchmark::State& st) {
+  Setup s = make_setup(st);
+  StochasticHybrid c(std::make_shared<FilteredNoiseSampler>(0.3, 0.5), s.dynamics, s.reward,
+                     StochasticHybridOptions{s.H, s.K, 0.1, true, 1e-5}, nullptr, "mppi");
+  for (auto _ : st)
+    benchmark::DoNotOptimize(c.act(s.state));
+}
+
+void DeterministicHybridBench(benchmark::State& st) {
+  Setup s = make_setup(st);
+  DeterministicHybrid c(s.policy, s.dynamics, s.reward, DeterministicHybridOptions{s.H, false, 0.999, true});
+  for (auto _ : st)
+    benchmark::DoNotOptimize(c.act(s.state));
+}
+
+// The matrix products of one stochastic planning call: per step, the policy's two heads (two layers each),
+// the dynamics (two layers) and the reward (three layers), all at batch K, into preallocated outputs.
+void StochasticHybridFloor(benchmark::State& st) {
+  Setup s = make_setup(st);
+  torch::InferenceMode guard;
+  const auto K = s.K, n = s.n, m = s.m;
+  auto x = torch::randn({K, n}), xa = torch::randn({K, n + m});
+  auto h = torch::empty({K, 128}), u = torch::empty({K, m}), hd = torch::empty({K, 200}),
+       d = torch::empty({K, n}), hr = torch::empty({K, 200}), r = torch::empty({K, 1});
+  auto pw1 = torch::randn({n, 128}), pw2 = torch::randn({128, m}), dw1 = torch::randn({n + m, 200}),
+       dw2 = torch::randn({200, n}), rw1 = torch::randn({n + m, 200}), rw2 = torch::randn({200, 200}),
+       rw3 = torch::randn({200, 1});
+  for (auto _ : st) {
+    for (int64_t t = 0; t < s.H; ++t) {
+      for (int head = 0; head < 2; ++head) {
+        at::mm_out(h, x, pw1);
+        at::mm_out(u, h, pw2);
+      }
+      at::mm_out(hd, xa, dw1);
+      at::mm_out(d, hd, dw2);
+      at::mm_out(hr, xa, rw1);
+      at::mm_out(hd, hr, rw2);
+      at::mm_out(r, hd, rw3);
+    }
+    benchmark::DoNotOptimize(r.data_ptr());
+  }
+}
+
+// The same without the policy: NN-MPPI's floor.
+void MPPIFloor(benchmark::State& st) {
+  Setup s = make_setup(st);
+  torch::InferenceMode guard;
+  const auto K = s.K, n = s.n, m = s.m;
+  auto xa = torch::randn({K, n + m});
+  auto hd = torch::empty({K, 200}), d = torch::empty({K, n}), hr = torch::empty({K, 200}),
+       r = torch::empty({K, 1});
+  auto dw1 = torch::randn({n + m, 200}), dw2 = torch::randn({200, n}), rw1 = torch::randn({n + m, 200}),
+       rw2 = torch::randn({200, 200}), rw3 = torch::randn({200, 1});
+  for (auto _ : st) {
+    for (int64_t t = 0; t < s.H; ++t) {
+      at::mm_out(hd, xa, dw1);
+      at::mm_out(d, hd, dw2);
+      at::mm_out(hr, xa, rw1);
+      at::mm_out(hd, hr, rw2);
+      at::mm_out(r, hd, rw3);
+    }
+    benchmark::DoNotOptimize(r.data_ptr());
+  }
+}
+
+// The deterministic planner's products: the batch-1 rollout (policy two heads at step 0, mean head after;
+// dynamics), the Jacobian pass forward at batches H n (dynamics), H m (policy mean) and H (reward), and the
+// backward products for the input gradients (one per layer).
+void DeterministicHybridFloor(benchmark::State& st) {
+  Setup s = make_setup(st);
+  torch::InferenceMode guard;
+  const auto n = s.n, m = s.m, H = s.H;
+  auto w = [](int64_t a, int64_t b) { return torch::randn({a, b}); };
+  auto pw1 = w(n, 128), pw2 = w(128, m), dw1 = w(n + m, 200), dw2 = w(200, n), rw1 = w(n + m, 200),
+       rw2 = w(200, 200), rw3 = w(200, 1);
+  auto layer = [](const at::Tensor& x, const at::Tensor& wt) { return at::mm(x, wt); };
+  auto back = [](const at::Tensor& g, const at::Tensor& wt) { return at::mm(g, wt.t()); };
+  auto x1 = torch::randn({1, n}), xa1 = torch::randn({1, n + m});
+  auto xf = torch::randn({H * n, n + m}), xm = torch::randn({H * m, n}), xr = torch::randn({H, n + m});
+  for (auto _ : st) {
+    for (int64_t t = 0; t < H; ++t) {
+      layer(layer(x1, pw1), pw2);
+      if (t == 0) layer(layer(x1, pw1), pw2);
+      layer(layer(xa1, dw1), dw2);
+    }
+    auto hf = layer(xf, dw1);
+    auto of = layer(hf, dw2);
+    back(back(of, dw2), dw1);
+    auto hm = layer(xm, pw1);
+    auto om = layer(hm, pw2);
+    back(back(om, pw2), pw1);
+    auto hr1 = layer(xr, rw1);
+    auto hr2 = layer(hr1, rw2);
+    auto orr = layer(hr2, rw3);
+    benchmark::DoNotOptimize(back(back(back(orr, rw3), rw2), rw1).data_ptr());
+    // The mode insertion gradient's two extra model evaluations at batch 2.
+    auto x2 = torch::randn({2, n + m});
+    layer(layer(x2, dw1), dw2);
+    layer(layer(layer(x2, rw1), rw2), rw3);
+  }
+}
+
+BENCHMARK(StochasticHybridBench)->Name("StochasticHybrid")->Apply(planner_args);
+BENCHMARK(StochasticHybridFloor)->Name("StochasticHybridFloor")->Apply(planner_args);
+BENCHMARK(MPPIBench)->Name("MPPI")->Apply(planner_args);
+BENCHMARK(MPPIFloor)->Name("MPPIFloor")->Apply(planner_args);
+BENCHMARK(DeterministicHybridBench)->Name("DeterministicHybrid")->Apply(planner_args);
+BENCHMARK(DeterministicHybridFloor)->Name("DeterministicHybridFloor")->Apply(planner_args);
+
+// One SAC update at batch 128 (critics 2 x 256, policy 128) and one joint model update (5 per agent step).
+void SacUpdate(benchmark::State& st) {
+  set_torch_threads(1);
+  torch::manual_seed(0);
+  const int64_t n = st.range(0), m = st.range(1);
+  const Activation act = n <= 6 ? Activation::kSin : Activation::kRelu;
+  Sac sac(GaussianPolicy(GaussianPolicyOptions{n, m, {128}, act}), n, m, SacOptions{});
+  ReplayBuffer rb(1000, n, m, 0);
+  std::vector<double> s(n, 0.1), a(m, 0.2);
+  for (int i = 0; i < 1000; ++i)
+    rb.add(s.data(), a.data(), 1.0, s.data(), a.data(), false);
+  for (auto _ : st)
+    benchmark::DoNotOptimize(sac.update(rb.sample(128)));
+}
+
+void ModelUpdate(benchmark::State& st) {
+  set_torch_threads(1);
+  torch::manual_seed(0);
+  const int64_t n = st.range(0), m = st.range(1);
+  const Activation act = n <= 6 ? Activation::kSin : Activation::kRelu;
+  ModelLearner learner(DynamicsModel(DynamicsModelOptions{n, m, 200, act}),
+                       RewardModel(RewardModelOptions{n, m, 200}), ModelLearnerOptions{});
+  ReplayBuffer rb(1000, n, m, 0);
+  std::vector<double> s(n, 0.1), a(m, 0.2);
+  for (int i = 0; i < 1000; ++i)
+    rb.add(s.data(), a.data(), 1.0, s.data(), a.data(), false);
+  for (auto _ : st)
+    benchmark::DoNotOptimize(learner.update(rb.sample(128)));
+}
+
+BENCHMARK(SacUpdate)->ArgNames({"n", "m"})->Args({5, 1})->Args({26, 6})->Unit(benchmark::kMillisecond);
+BENCHMARK(ModelUpdate)->ArgNames({"n", "m"})->Args({5, 1})->Args({26, 6})->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace hlt

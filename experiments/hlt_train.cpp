@@ -1,0 +1,128 @@
+// hlt_train: trains any method on any registered environment.
+//
+//   hlt_train --env cartpole_swingup --method hybrid-stochastic --seed 0 --steps 10000 --out runs/x
+//             [--config FILE] [key=value ...]
+//   hlt_train --resume runs/x [--steps N]
+//
+// Settings are resolved in order: declared defaults, experiments/configs/<env>.yaml, --config FILE, the
+// flags above, then key=value overrides. `hlt_train --list` prints every key.
+#include <filesystem>
+#include <iostream>
+#include <optional>
+
+#include <fmt/format.h>
+#include <yaml-cpp/yaml.h>
+#include <CLI/CLI.hpp>
+
+#include "agents/train_config.h"
+#include "agents/trainer.h"
+#include "hlt/util/error.h"
+#include "hlt/util/files.h"
+#include "hlt/util/progress_bar.h"
+#include "hlt/util/scalar_logger.h"
+
+namespace fs = std::filesystem;
+
+namespace hlt {
+namespace {
+
+// The env a config file names, if any (needed before the env's default file can be loaded).
+std::optional<std::string> env_in_file(const std::string& path) {
+  try {
+    YAML::Node root = YAML::Load(read_file(path));
+    if (root.IsMap() && root["env"]) return root["env"].as<std::string>();
+  } catch (const YAML::Exception& e) {
+    throw Error(fmt::format("malformed YAML in {}: {}", path, e.what()));
+  }
+  return std::nullopt;
+}
+
+void print_summary(const std::string& dir) {
+  const auto rows = ScalarLogger::read((fs::path(dir) / Trainer::kLogFile).string());
+  double last_eval = std::nan(""), last_return = std::nan("");
+  int64_t last_step = 0;
+  for (const auto& r : rows) {
+    if (r.tag == "eval/return_mean") last_eval = r.value;
+    if (r.tag == "train/episode_return") last_return = r.value;
+    last_step = std::max(last_step, r.step);
+  }
+  fmt::print(
+      "done: {} environment steps; last evaluation return {:.1f}, last training episode return {:.1f}\n",
+      last_step, last_eval, last_return);
+  fmt::print("results in {}/ ({}, {}, {}, {})\n", dir, Trainer::kLogFile, Trainer::kConfigFile,
+             Trainer::kFinalFile, Trainer::kCheckpointFile);
+}
+
+int run(int argc, char** argv) {
+  CLI::App app{"Train a hybrid-learning method (or a baseline) on an environment."};
+  std::string env, method, out, config_file, resume;
+  std::optional<int64_t> seed, steps;
+  std::vector<std::string> overrides;
+  bool list = false, no_progress = false;
+  app.add_option("--env", env, "environment name (default cartpole_swingup)");
+  app.add_option("--method", method,
+                 "sac | hybrid-stochastic | hybrid-deterministic | mppi | mpc-deterministic");
+  app.add_option("--seed", seed, "run seed");
+  app.add_option("--steps", steps, "agent steps to train for (with --resume: the new total)");
+  app.add_option("--out", out, "run directory (default runs/<env>/<method>/seed<seed>)");
+  app.add_option("--config", config_file, "YAML config file applied after the environment's defaults");
+  app.add_option("--resume", resume, "continue the run in this directory from its last checkpoint");
+  app.add_flag("--list", list, "print every config key with its default and allowed values, then exit");
+  app.add_flag("--no-progress", no_progress,
+               "no progress bar (it is also off when stderr is not a terminal)");
+  app.add_option("overrides", overrides, "key=value config overrides, e.g. planner.samples=60");
+  CLI11_PARSE(app, argc, argv);
+
+  if (list) {
+    fmt::print("config keys (set in a YAML file or as key=value):\n{}", make_train_config().describe());
+    return 0;
+  }
+  const bool progress = !no_progress && ProgressBar::stderr_is_terminal();
+  if (!resume.empty()) {
+    check(env.empty() && method.empty() && !seed && config_file.empty() && overrides.empty() && out.empty(),
+          "--resume continues a run with its own config; only --steps may be given with it");
+    auto trainer = Trainer::resume(resume, steps);
+    fmt::print("resuming {} ({} on {})\n", resume, trainer->config().get_string("method"),
+               trainer->config().get_string("env"));
+    trainer->run(progress);
+    print_summary(resume);
+    return 0;
+  }
+
+  Config config = make_train_config();
+  std::string env_name = env;
+  if (env_name.empty() && !config_file.empty()) env_name = env_in_file(config_file).value_or("");
+  if (env_name.empty()) env_name = config.get_string("env");
+  config.set("env", env_name, "--env");  // validates the name before its file is looked up
+  const fs::path env_defaults = fs::path(HLT_CONFIG_DIR) / (env_name + ".yaml");
+  if (fs::exists(env_defaults)) config.load_file(env_defaults.string());
+  if (!config_file.empty()) config.load_file(config_file);
+  if (!method.empty()) config.set("method", method, "--method");
+  if (seed) config.set("seed", std::to_string(*seed), "--seed");
+  if (steps) config.set("train.agent_steps", std::to_string(*steps), "--steps");
+  for (const auto& o : overrides)
+    config.apply_override(o);
+  if (out.empty()) {
+    out = fmt::format("runs/{}/{}/seed{}", config.get_string("env"), config.get_string("method"),
+                      config.get_int("seed"));
+  }
+  auto trainer = Trainer::create(config, out);
+  fmt::print("training {} on {} (seed {}, {} agent steps, frame skip {}) into {}\n",
+             config.get_string("method"), config.get_string("env"), config.get_int("seed"),
+             config.get_int("train.agent_steps"), config.get_int("train.frame_skip"), out);
+  trainer->run(progress);
+  print_summary(out);
+  return 0;
+}
+
+}  // namespace
+}  // namespace hlt
+
+int main(int argc, char** argv) {
+  try {
+    return hlt::run(argc, argv);
+  } catch (const hlt::Error& e) {
+    fmt::print(stderr, "hlt_train: error: {}\n", e.what());
+    return 2;
+  }
+}

@@ -1,0 +1,91 @@
+// Allocation-free batched forward passes of the policy and the learned models, for the planners' hot loops.
+//
+// A planning step over K samples is a few tiny matrix products; through the generic module forward it costs
+// dozens of dispatched tensor ops (2-3 us each), which dominates. Here every layer of the whole batch is one
+// matrix product through ATen (BLAS) into preallocated buffers, the two policy heads and the two models'
+// first layers are fused into single products, and the light elementwise work (ReLU, clamps, the dynamics'
+// residual add) runs as Eigen expressions over the same buffers, without dispatch.
+//
+// Batches are feature-major: a batch of B states is an [n, B] matrix (one column per sample). Each layer is
+// then W x + b with the weight in the layout torch stores it ([out, in], row-major), so no weight is ever
+// transposed or copied per call except to fuse the first layers. The results equal the modules' forward
+// passes (tests/core/batched_forward_test.cpp). Float and double models are supported.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include <ATen/core/Tensor.h>
+#include <Eigen/Core>
+
+#include "hlt/nn/dynamics_model.h"
+#include "hlt/nn/gaussian_policy.h"
+#include "hlt/nn/reward_model.h"
+
+namespace hlt {
+
+template <typename T>
+using RowMatrix = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+template <typename T>
+using RowMap = Eigen::Map<RowMatrix<T>, 0, Eigen::OuterStride<>>;
+
+// An Eigen view of a 2-D tensor whose rows are contiguous (any row stride).
+template <typename T>
+RowMap<T> row_map(const at::Tensor& t) {
+  return RowMap<T>(t.data_ptr<T>(), t.size(0), t.size(1), Eigen::OuterStride<>(t.stride(0)));
+}
+
+[[noreturn]] void dispatch_floating_error(const at::Tensor& t);
+
+// Calls f(T{}) with T = float or double after the tensor's dtype; throws for any other dtype.
+template <typename F>
+void dispatch_floating(const at::Tensor& t, F&& f) {
+  if (t.scalar_type() == at::kFloat) {
+    f(float{});
+  } else if (t.scalar_type() == at::kDouble) {
+    f(double{});
+  } else {
+    dispatch_floating_error(t);
+  }
+}
+
+// Both heads of a GaussianPolicy in one pass: mean and clamped log-std for a batch of states.
+class PolicyForward {
+ public:
+  explicit PolicyForward(GaussianPolicy policy);
+  // Re-reads the policy's current weights (training changes them between planning calls) and sizes the
+  // buffers for `batch` rows. Call once per planning call.
+  void prepare(int64_t batch);
+  // Fills mean() and log_std() for `states` [n, batch].
+  void forward(const at::Tensor& states);
+  // [m, batch] views into the output buffer (valid until the batch size changes).
+  const at::Tensor& mean() const { return mean_; }
+  const at::Tensor& log_std() const { return log_std_; }
+
+ private:
+  GaussianPolicy policy_;
+  std::vector<at::Tensor> weights_, buffers_;     // per fused layer: [out, in], [out, batch]
+  std::vector<at::Tensor> mean_rows_, std_rows_;  // each head's rows of every layer's buffer
+  std::vector<int64_t> widths_;                   // hidden width of one head per hidden layer
+  at::Tensor mean_, log_std_;
+};
+
+// The dynamics and reward models on the same batch of (s, a): s' and r(s, a).
+class ModelForward {
+ public:
+  ModelForward(DynamicsModel dynamics, RewardModel reward);
+  void prepare(int64_t batch);
+  // next_states [n, batch] and, if `rewards` is given, rewards [batch] from states [n, batch] and actions
+  // [m, batch]. The outputs are caller-owned contiguous tensors of the models' dtype.
+  void step(const at::Tensor& states, const at::Tensor& actions, at::Tensor& next_states,
+            at::Tensor* rewards);
+
+ private:
+  DynamicsModel dynamics_;
+  RewardModel reward_;
+  int64_t n_ = 0, m_ = 0, hd_ = 0, hr_ = 0;
+  at::Tensor w1_;                                               // the two first layers, stacked
+  at::Tensor input_, hidden1_, hidden_d_, hidden_r_, hidden2_;  // buffers [rows, batch] and row views
+};
+
+}  // namespace hlt

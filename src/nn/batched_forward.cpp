@@ -1,0 +1,187 @@
+#include "hlt/nn/batched_forward.h"
+
+#include <optional>
+
+#include <torch/torch.h>
+
+#include "hlt/util/error.h"
+
+namespace hlt {
+namespace {
+
+torch::nn::LinearImpl* linear_at(torch::nn::ModuleList list, size_t i) {
+  return list[i]->as<torch::nn::Linear>();
+}
+
+// x = act(x + bias) for a contiguous row block x [rows, batch] and a bias parameter [rows]. The bias goes in
+// through Eigen (cheaper than the bias path of addmm); sin through ATen (its vectorised kernels are several
+// times faster than Eigen's portable SSE2 build); ReLU through Eigen, fused with the bias, without dispatch.
+void bias_activate(const at::Tensor& x, const at::Tensor& bias, std::optional<Activation> a) {
+  dispatch_floating(x, [&](auto tag) {
+    using T = decltype(tag);
+    auto m = row_map<T>(x);
+    Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, 1>> b(bias.data_ptr<T>(), bias.numel());
+    if (a == Activation::kRelu) {
+      m = (m.colwise() + b).cwiseMax(T(0));
+    } else {
+      m.colwise() += b;
+    }
+  });
+  if (a == Activation::kSin) at::sin_(const_cast<at::Tensor&>(x));
+}
+
+// Copies a contiguous tensor's values into `dst` (same element count).
+template <typename T>
+void copy_into(const at::Tensor& src, T* dst) {
+  std::copy(src.data_ptr<T>(), src.data_ptr<T>() + src.numel(), dst);
+}
+
+// Copies an [rows, cols] weight into the block at (row, col) of a row-major matrix with `stride` columns.
+template <typename T>
+void copy_block(const at::Tensor& w, T* dst, int64_t row, int64_t col, int64_t stride) {
+  const int64_t rows = w.size(0), cols = w.size(1);
+  const T* src = w.data_ptr<T>();
+  for (int64_t r = 0; r < rows; ++r)
+    std::copy(src + r * cols, src + (r + 1) * cols, dst + (row + r) * stride + col);
+}
+
+}  // namespace
+
+void dispatch_floating_error(const at::Tensor& t) {
+  throw Error(
+      fmt::format("batched forward needs float or double tensors, got {}", std::string(t.dtype().name())));
+}
+
+PolicyForward::PolicyForward(GaussianPolicy policy) : policy_(std::move(policy)) {
+  check(!policy_.is_empty(), "PolicyForward needs a policy");
+}
+
+void PolicyForward::prepare(int64_t batch) {
+  const auto& o = policy_->options();
+  const size_t layers = policy_->mean_layers->size();
+  const auto& w0 = linear_at(policy_->mean_layers, 0)->weight;
+  if (buffers_.empty() || buffers_.front().size(1) != batch ||
+      w0.scalar_type() != buffers_.front().scalar_type()) {
+    // Allocated once per batch size; the off-diagonal blocks of the fused layers stay zero.
+    weights_.clear();
+    buffers_.clear();
+    widths_.assign(o.hidden.begin(), o.hidden.end());
+    const auto opts = w0.options().requires_grad(false);
+    for (size_t l = 0; l < layers; ++l) {
+      const auto& mw = linear_at(policy_->mean_layers, l)->weight;
+      const int64_t in = l == 0 ? mw.size(1) : 2 * mw.size(1);
+      weights_.push_back(torch::zeros({2 * mw.size(0), in}, opts));
+      buffers_.push_back(torch::empty({2 * mw.size(0), batch}, opts));
+    }
+    mean_ = buffers_.back().narrow(0, 0, o.action_dim);
+    log_std_ = buffers_.back().narrow(0, o.action_dim, o.action_dim);
+    mean_rows_.clear();
+    std_rows_.clear();
+    for (size_t l = 0; l < layers; ++l) {
+      const int64_t width = l + 1 < layers ? widths_[l] : o.action_dim;
+      mean_rows_.push_back(buffers_[l].narrow(0, 0, width));
+      std_rows_.push_back(buffers_[l].narrow(0, width, width));
+    }
+  }
+  // The current weights, fused: the first layers stacked (both heads read the state), later layers
+  // block-diagonal. Plain row copies, no dispatched ops.
+  dispatch_floating(w0, [&](auto tag) {
+    using T = decltype(tag);
+    for (size_t l = 0; l < layers; ++l) {
+      const auto* mean = linear_at(policy_->mean_layers, l);
+      const auto* std = linear_at(policy_->log_std_layers, l);
+      const int64_t out = mean->weight.size(0), in = mean->weight.size(1);
+      const int64_t stride = weights_[l].size(1);
+      T* w = weights_[l].data_ptr<T>();
+      copy_block<T>(mean->weight, w, 0, 0, stride);
+      copy_block<T>(std->weight, w, out, l == 0 ? 0 : in, stride);
+    }
+  });
+}
+
+void PolicyForward::forward(const at::Tensor& states) {
+  torch::NoGradGuard no_grad;  // out= products do not record gradients
+  const auto& o = policy_->options();
+  const at::Tensor* x = &states;
+  const size_t layers = buffers_.size();
+  for (size_t l = 0; l < layers; ++l) {
+    at::mm_out(buffers_[l], weights_[l], *x);
+    x = &buffers_[l];
+    const bool hidden = l + 1 < layers;
+    bias_activate(mean_rows_[l], linear_at(policy_->mean_layers, l)->bias,
+                  hidden ? std::optional<Activation>(o.mean_activation) : std::nullopt);
+    bias_activate(std_rows_[l], linear_at(policy_->log_std_layers, l)->bias,
+                  hidden ? std::optional<Activation>(Activation::kRelu) : std::nullopt);
+  }
+  dispatch_floating(log_std_, [&](auto tag) {
+    using T = decltype(tag);
+    auto ls = row_map<T>(log_std_);
+    ls = ls.array().max(T(o.log_std_min)).min(T(o.log_std_max)).matrix();
+  });
+}
+
+ModelForward::ModelForward(DynamicsModel dynamics, RewardModel reward)
+    : dynamics_(std::move(dynamics)), reward_(std::move(reward)) {
+  check(!dynamics_.is_empty() && !reward_.is_empty(), "ModelForward needs both models");
+  n_ = dynamics_->options().state_dim;
+  m_ = dynamics_->options().action_dim;
+  hd_ = dynamics_->options().hidden;
+  hr_ = reward_->options().hidden;
+  check(reward_->options().state_dim == n_ && reward_->options().action_dim == m_,
+        "dynamics and reward models disagree on sizes");
+}
+
+void ModelForward::prepare(int64_t batch) {
+  const auto& w = dynamics_->fc1->weight;
+  if (!input_.defined() || input_.size(1) != batch || input_.scalar_type() != w.scalar_type()) {
+    const auto opts = w.options().requires_grad(false);
+    w1_ = torch::empty({hd_ + hr_, n_ + m_}, opts);
+    input_ = torch::empty({n_ + m_, batch}, opts);
+    hidden1_ = torch::empty({hd_ + hr_, batch}, opts);
+    hidden_d_ = hidden1_.narrow(0, 0, hd_);
+    hidden_r_ = hidden1_.narrow(0, hd_, hr_);
+    hidden2_ = torch::empty({hr_, batch}, opts);
+  }
+  dispatch_floating(w, [&](auto tag) {
+    using T = decltype(tag);
+    // Both models read [s; a]: their first layers, stacked, become one product.
+    copy_into<T>(dynamics_->fc1->weight, w1_.data_ptr<T>());
+    copy_into<T>(reward_->fc1->weight, w1_.data_ptr<T>() + hd_ * (n_ + m_));
+  });
+}
+
+void ModelForward::step(const at::Tensor& states, const at::Tensor& actions, at::Tensor& next_states,
+                        at::Tensor* rewards) {
+  torch::NoGradGuard no_grad;  // out= products do not record gradients
+  dispatch_floating(input_, [&](auto tag) {
+    using T = decltype(tag);
+    auto in = row_map<T>(input_);
+    in.topRows(n_) = row_map<T>(states);
+    in.bottomRows(m_) = row_map<T>(actions);
+  });
+  at::mm_out(hidden1_, w1_, input_);
+  bias_activate(hidden_d_, dynamics_->fc1->bias, dynamics_->options().activation);
+  bias_activate(hidden_r_, reward_->fc1->bias, Activation::kRelu);
+  // s' = s + W2 h + b2
+  at::mm_out(next_states, dynamics_->fc2->weight, hidden_d_);
+  dispatch_floating(next_states, [&](auto tag) {
+    using T = decltype(tag);
+    Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, 1>> b(dynamics_->fc2->bias.data_ptr<T>(), n_);
+    row_map<T>(next_states) += row_map<T>(states).colwise() + b;
+  });
+  if (!rewards) return;
+  at::mm_out(hidden2_, reward_->fc2->weight, hidden_r_);
+  bias_activate(hidden2_, reward_->fc2->bias, Activation::kRelu);
+  dispatch_floating(hidden2_, [&](auto tag) {
+    using T = decltype(tag);
+    auto h = row_map<T>(hidden2_);
+    // The last layer has one output: a vector-matrix product, cheaper in Eigen than a dispatched op.
+    const auto& w3 = reward_->fc3->weight;
+    Eigen::Map<const Eigen::Matrix<T, 1, Eigen::Dynamic>> w(w3.data_ptr<T>(), w3.size(1));
+    Eigen::Map<Eigen::Matrix<T, 1, Eigen::Dynamic>> r(rewards->data_ptr<T>(), rewards->numel());
+    r.noalias() = w * h;
+    r.array() += reward_->fc3->bias.data_ptr<T>()[0];
+  });
+}
+
+}  // namespace hlt

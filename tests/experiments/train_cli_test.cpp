@@ -1,0 +1,168 @@
+// End-to-end tests of hlt_train and hlt_rollout, run as subprocesses: bad input, kill -9 and resume.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include <fmt/format.h>
+
+#include <sstream>
+
+#include "hlt/util/files.h"
+#include "hlt/util/scalar_logger.h"
+
+extern char** environ;
+
+namespace hlt {
+namespace {
+namespace fs = std::filesystem;
+
+struct Result {
+  int code = -1;
+  std::string output;  // stdout and stderr
+};
+
+Result run(const std::string& command) {
+  Result r;
+  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
+  if (!pipe) return r;
+  char buf[4096];
+  while (size_t n = std::fread(buf, 1, sizeof buf, pipe))
+    r.output.append(buf, n);
+  const int status = ::pclose(pipe);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::string fresh_dir(const std::string& name) {
+  const fs::path p = fs::temp_directory_path() / "hlt_cli_test" / name;
+  fs::remove_all(p);
+  fs::create_directories(p.parent_path());
+  return p.string();
+}
+
+const std::string kTrain = HLT_TRAIN_BIN;
+// A small, fast configuration: pendulum episodes are 50 agent steps with frame skip 4.
+const std::string kSmall =
+    " --env pendulum --seed 3 train.update_after=64 train.batch_size=32 model.hidden=32 "
+    "model.reward_hidden=32"
+    " sac.q_hidden=[32,32] planner.samples=8 eval.episodes=1 --no-progress";
+
+TEST(TrainCli, RejectsBadInputWithClearMessages) {
+  Result r = run(kTrain + " --env moonwalk --steps 10 --out " + fresh_dir("bad_env"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("expected one of: acrobot, cartpole_swingup"), std::string::npos) << r.output;
+  r = run(kTrain + " --env pendulum --method magic --out " + fresh_dir("bad_method"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("hybrid-stochastic"), std::string::npos) << r.output;
+  r = run(kTrain + " --env pendulum planner.samples=-3 --out " + fresh_dir("bad_value"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("'planner.samples'"), std::string::npos) << r.output;
+  r = run(kTrain + " --env pendulum planer.samples=3 --out " + fresh_dir("typo"));
+  EXPECT_NE(r.output.find("did you mean 'planner.samples'"), std::string::npos) << r.output;
+  r = run(kTrain + " --env pendulum --out /proc/hlt_not_writable");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("/proc/hlt_not_writable"), std::string::npos) << r.output;
+  r = run(kTrain + " --resume " + fresh_dir("no_such_run"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("no such directory"), std::string::npos) << r.output;
+  const std::string bad_yaml = fresh_dir("bad.yaml");
+  write_file_atomic(bad_yaml, "train: [1, 2\n");
+  r = run(kTrain + " --config " + bad_yaml + " --out " + fresh_dir("bad_yaml_run"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("malformed YAML"), std::string::npos) << r.output;
+}
+
+TEST(TrainCli, NeverOverwritesARunAndReportsCorruptCheckpoints) {
+  const std::string dir = fresh_dir("existing");
+  Result r = run(kTrain + kSmall + " --method sac --steps 60 checkpoint.every=50 eval.every=0 --out " + dir);
+  ASSERT_EQ(r.code, 0) << r.output;
+  const std::string log_before = read_file(dir + "/scalars.csv");
+  // The trained policy runs in hlt_rollout, on its own environment only, and the run plots.
+  r = run(std::string(HLT_ROLLOUT_BIN) + " --env pendulum --episodes 2 --policy checkpoint:" + dir +
+          "/final.pt");
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("frame skip 4"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("mean return"), std::string::npos) << r.output;
+  r = run(std::string(HLT_ROLLOUT_BIN) + " --env acrobot --policy checkpoint:" + dir + "/final.pt");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.output.find("trained on pendulum, not acrobot"), std::string::npos) << r.output;
+  r = run(std::string("/usr/bin/python3 ") + HLT_PLOT_SCRIPT + " " + dir + " --out " + dir + "/curve.png" +
+          " --tags eval/return_mean,train/episode_return");
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir + "/curve.png"));
+  r = run(kTrain + kSmall + " --method sac --steps 60 --out " + dir);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("already holds a run"), std::string::npos) << r.output;
+  EXPECT_EQ(read_file(dir + "/scalars.csv"), log_before);
+  // A truncated checkpoint is reported, not loaded.
+  const std::string ckpt = read_file(dir + "/checkpoint.pt");
+  write_file_atomic(dir + "/checkpoint.pt", ckpt.substr(0, ckpt.size() / 3));
+  r = run(kTrain + " --resume " + dir + " --steps 120 --no-progress");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("corrupt"), std::string::npos) << r.output;
+  EXPECT_EQ(read_file(dir + "/scalars.csv"), log_before);
+}
+
+// Rows of a log without wall-clock values: what must be identical between two runs of the same seed.
+std::vector<std::string> comparable_rows(const std::string& path) {
+  std::vector<std::string> rows;
+  for (const auto& r : ScalarLogger::read(path)) {
+    if (r.tag.rfind("time/", 0) == 0) continue;
+    rows.push_back(fmt::format("{},{},{:.17g}", r.step, r.tag, r.value));
+  }
+  return rows;
+}
+
+TEST(TrainCli, KilledRunResumesToTheSameLog) {
+  const std::string args =
+      kSmall + " --method hybrid-stochastic --steps 600 checkpoint.every=100 eval.every=100";
+  const std::string straight = fresh_dir("straight"), killed = fresh_dir("killed");
+  Result r = run(kTrain + args + " --out " + straight);
+  ASSERT_EQ(r.code, 0) << r.output;
+
+  // Start the same run, wait for its first checkpoint and a little more, then kill -9.
+  std::vector<std::string> words{kTrain};
+  std::istringstream split(args + " --out " + killed);
+  for (std::string w; split >> w;)
+    words.push_back(w);
+  std::vector<char*> argv;
+  for (auto& w : words)
+    argv.push_back(w.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
+  posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
+  pid_t pid = 0;
+  ASSERT_EQ(::posix_spawn(&pid, kTrain.c_str(), &actions, nullptr, argv.data(), environ), 0);
+  posix_spawn_file_actions_destroy(&actions);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (!fs::exists(killed + "/checkpoint.pt") && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_TRUE(fs::exists(killed + "/checkpoint.pt"));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ::kill(pid, SIGKILL);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "the run finished before it could be killed; make it longer";
+  const auto partial = comparable_rows(killed + "/scalars.csv");
+  const auto full = comparable_rows(straight + "/scalars.csv");
+  ASSERT_LT(partial.size(), full.size());
+
+  r = run(kTrain + " --resume " + killed + " --no-progress");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(comparable_rows(killed + "/scalars.csv"), full);
+}
+
+}  // namespace
+}  // namespace hlt
