@@ -66,6 +66,10 @@ Frames check_and_place(const Model& m) {
       check(j.pos.allFinite() && j.axis.allFinite() && j.axis.norm() > 0,
             "robot model '{}': joint '{}' has a bad position or axis", m.name, j.name);
       check(!j.actuated || j.range, "robot model '{}': actuated joint '{}' needs a range", m.name, j.name);
+      // PyBullet places a body's further joints relative to its first one in a way that agrees with MJCF only
+      // when they coincide.
+      check(single3(j.pos) == single3(b.joints.front().pos),
+            "robot model '{}': the joints of body '{}' must share one position", m.name, b.name);
       check(!j.range || j.range->first < j.range->second, "robot model '{}': joint '{}' has range [{}, {}]",
             m.name, j.name, j.range.value_or(std::make_pair(0.0, 0.0)).first,
             j.range.value_or(std::make_pair(0.0, 0.0)).second);
@@ -152,8 +156,8 @@ struct Builder {
   const Frames& frames;
   BuiltModel out;
 
-  // Offsets are also given in local form, composed in the order PyBullet's import composes its transforms,
-  // so that the multibody matches PyBullet's to the last bit.
+  // Offsets are also given in local form, composed as PyBullet's import composes its transforms, so that the
+  // joint frames pick up no rounding from world coordinates.
   void add(int body, int parent_link, const Eigen::Vector3d& parent_local_com) {
     const Body& b = model.bodies[body];
     const Eigen::Vector3d& origin = frames.origin[body];

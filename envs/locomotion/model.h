@@ -77,16 +77,17 @@ struct BuiltModel {
   int link_of(const std::string& body) const;  // throws naming the known bodies
 };
 
-// Builds a model the way PyBullet imports MJCF (every position, size, axis, angle and mass of the
-// description is first rounded with single(), as PyBullet's MJCF parser reads them): every joint becomes a
-// massless link carrying that joint (named "joint:<name>", placed at the joint), and every body a link fixed
-// to the last of its joint links (or to its parent body when it has none), its frame at the body origin. A
-// root body with joints hangs from a massless fixed base at the world origin; one without joints is a
-// floating base. Links appear depth first in file order. A body's mass is 1000 kg/m^3 times its geoms' volume
-// unless given; its COM is the middle of its last geom when that is a fromto capsule and its frame origin
-// otherwise (PyBullet's rule); its inertia is bullet::estimated_inertia of its shapes. Geoms collide with the
-// ground only. Throws hlt::Error for an inconsistent description (unknown or late parent, duplicate names, a
-// floating root without mass, a joint without a range that is actuated, bad geoms).
+// Builds a model the way PyBullet imports MJCF (positions, capsule sizes, axes, angles and frictions are
+// first rounded with single(), as PyBullet's MJCF parser reads them; masses and sphere radii it reads in
+// double precision): every joint becomes a massless link carrying that joint (named "joint:<name>", placed at
+// the joint), and every body a link fixed to the last of its joint links (or to its parent body when it has
+// none), its frame at the body origin. A root body with joints hangs from a massless fixed base at the world
+// origin; one without joints is a floating base. Links appear depth first in file order. A body's mass is
+// 1000 kg/m^3 times its geoms' volume unless given; its COM is the middle of its last geom when that is a
+// fromto capsule and its frame origin otherwise (PyBullet's rule); its inertia is bullet::estimated_inertia
+// of its shapes. Geoms collide with the ground only. Throws hlt::Error for an inconsistent description
+// (unknown or late parent, duplicate names, a floating root without mass, an actuated joint without a range,
+// joints of one body at different positions, bad geoms).
 BuiltModel build(const Model& model);
 
 // A number as PyBullet's MJCF parser reads it (single precision). The rounding goes through a volatile

@@ -579,6 +579,9 @@ TEST(Locomotion, BadModelsAreRejected) {
   s = hopper_spec();
   s.model.bodies[0].geoms[0].radius = -1;
   EXPECT_THROW(Walker w(s), Error);
+  s = hopper_spec();
+  s.model.bodies[0].joints[2].pos = V(0, 0, 1.25);  // the root hinge apart from the sliders
+  EXPECT_THROW(Walker w(s), Error);
   s = ant_spec();
   s.alive.forbidden_feet = {7};
   EXPECT_THROW(Walker w(s), Error);
