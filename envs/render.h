@@ -36,6 +36,7 @@ class SideView {
 namespace colours {
 const cv::Scalar kBackground(245, 245, 245);
 const cv::Scalar kGround(90, 90, 90);
+const cv::Scalar kGroundFill(215, 215, 215);
 const cv::Scalar kBody(60, 110, 200);
 const cv::Scalar kLimb(40, 160, 230);
 const cv::Scalar kJoint(30, 30, 30);

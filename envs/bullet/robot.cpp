@@ -2,12 +2,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <btBulletDynamicsCommon.h>
 
+#include <BulletCollision/CollisionShapes/btMultiSphereShape.h>
 #include <BulletDynamics/Featherstone/btMultiBody.h>
 #include <BulletDynamics/Featherstone/btMultiBodyDynamicsWorld.h>
 #include <BulletDynamics/Featherstone/btMultiBodyJointLimitConstraint.h>
+#include <BulletDynamics/Featherstone/btMultiBodyJointMotor.h>
 #include <BulletDynamics/Featherstone/btMultiBodyLinkCollider.h>
 
 #include "hlt/util/error.h"
@@ -40,6 +43,16 @@ Eigen::Isometry3d to_eigen(const btTransform& t) {
 
 bool finite(const Eigen::Vector3d& v) {
   return v.allFinite();
+}
+
+// The orientation that turns a btCapsuleShapeZ's axis onto `dir`; shared by the collider and the inertia
+// estimate so that both see the same box.
+Eigen::Quaterniond capsule_rotation(const Eigen::Vector3d& dir) {
+  return Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), dir.normalized());
+}
+
+bool is_single_sphere_at(const std::vector<Shape>& shapes, const Eigen::Vector3d& com) {
+  return shapes.size() == 1 && shapes[0].is_sphere() && shapes[0].from == com;
 }
 
 void check_body(const BodySpec& b, const std::string& robot) {
@@ -77,6 +90,30 @@ Eigen::Vector3d fromto_capsule_inertia(double mass, const Eigen::Vector3d& from,
   const Eigen::Vector3d hi = from.cwiseMax(to).array() + radius + kCollisionMargin;
   const Eigen::Vector3d extent = hi - lo;
   const Eigen::Vector3d sq = extent.cwiseProduct(extent);
+  return mass / 12.0 * Eigen::Vector3d(sq.y() + sq.z(), sq.x() + sq.z(), sq.x() + sq.y());
+}
+
+Eigen::Vector3d estimated_inertia(double mass, const std::vector<Shape>& shapes, const Eigen::Vector3d& com) {
+  check(!shapes.empty(), "an inertia estimate needs at least one shape");
+  if (is_single_sphere_at(shapes, com))
+    return Eigen::Vector3d::Constant(0.4 * mass * shapes[0].radius * shapes[0].radius);
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d hi = -lo;
+  for (const Shape& s : shapes) {
+    Eigen::Vector3d centre = 0.5 * (s.from + s.to) - com;
+    Eigen::Vector3d half = Eigen::Vector3d::Constant(s.radius);
+    if (s.sphere_pair) {
+      half = 0.5 * (s.to - s.from).cwiseAbs() + Eigen::Vector3d::Constant(s.radius + kCollisionMargin);
+    } else if (!s.is_sphere()) {
+      // Bullet bounds a capsule by its local box (r, r, r + half length) turned into the parent frame.
+      const Eigen::Vector3d d = s.to - s.from;
+      const Eigen::Matrix3d r = capsule_rotation(d).toRotationMatrix().cwiseAbs();
+      half = r * Eigen::Vector3d(s.radius, s.radius, s.radius + 0.5 * d.norm());
+    }
+    lo = lo.cwiseMin(centre - half);
+    hi = hi.cwiseMax(centre + half);
+  }
+  const Eigen::Vector3d sq = (hi - lo).cwiseAbs2();
   return mass / 12.0 * Eigen::Vector3d(sq.y() + sq.z(), sq.x() + sq.z(), sq.x() + sq.y());
 }
 
@@ -134,8 +171,8 @@ Robot::Robot(btMultiBodyDynamicsWorld& world, RobotSpec spec) : world_(world), s
     const LinkSpec& l = spec_.links[i];
     const Eigen::Vector3d parent_com = l.parent < 0 ? spec_.base.com : spec_.links[l.parent].com;
     // Every body frame is world-aligned at the zero configuration, so world offsets are frame offsets.
-    const btVector3 parent_to_pivot = to_bt(l.anchor - parent_com);
-    const btVector3 pivot_to_com = to_bt(l.com - l.anchor);
+    const btVector3 parent_to_pivot = to_bt(l.parent_com_to_pivot.value_or(l.anchor - parent_com));
+    const btVector3 pivot_to_com = to_bt(l.pivot_to_com.value_or(l.com - l.anchor));
     // The axis goes in as given: PyBullet passes MJCF axes unnormalised too.
     switch (l.joint) {
       case JointType::kFixed:
@@ -162,38 +199,61 @@ Robot::Robot(btMultiBodyDynamicsWorld& world, RobotSpec spec) : world_(world), s
         std::make_unique<btMultiBodyJointLimitConstraint>(body_.get(), i, l.limits->first, l.limits->second));
     world_.addMultiBodyConstraint(limits_.back().get());
   }
+  for (int i = 0; spec_.disabled_motors && i < n; ++i) {
+    if (spec_.links[i].joint == JointType::kFixed) continue;
+    limits_.push_back(std::make_unique<btMultiBodyJointMotor>(body_.get(), i, 0, 0.0, 0.0));
+    world_.addMultiBodyConstraint(limits_.back().get());
+  }
 
+  link_colliders_.assign(n + 1, nullptr);
   for (int i = -1; i < n; ++i) {
     const BodySpec& b = i < 0 ? static_cast<const BodySpec&>(spec_.base) : spec_.links[i];
-    if (b.shapes.empty()) continue;
-    auto compound = std::make_unique<btCompoundShape>();
-    for (const Shape& s : b.shapes) {
-      std::unique_ptr<btCollisionShape> child;
-      btTransform local = btTransform::getIdentity();
-      if (s.is_sphere()) {
-        child = std::make_unique<btSphereShape>(s.radius);
-        local.setOrigin(to_bt(s.from - b.com));
-      } else {
-        const Eigen::Vector3d d = s.to - s.from;
-        child = std::make_unique<btCapsuleShapeZ>(s.radius, d.norm());
-        local.setOrigin(to_bt(0.5 * (s.from + s.to) - b.com));
-        local.setRotation(shortestArcQuat(btVector3(0, 0, 1), to_bt(d.normalized())));
+    // A base without shapes needs no collider: a fixed base is static and joins no island, and a floating one
+    // has no constraints of its own.
+    if (i < 0 && b.shapes.empty()) continue;
+    btCollisionShape* shape = nullptr;
+    if (is_single_sphere_at(b.shapes, b.com)) {
+      // PyBullet uses a lone shape sitting at the COM directly instead of wrapping it in a compound.
+      shapes_.push_back(std::make_unique<btSphereShape>(b.shapes[0].radius));
+      shape = shapes_.back().get();
+    } else {
+      auto compound = std::make_unique<btCompoundShape>();
+      for (const Shape& s : b.shapes) {
+        std::unique_ptr<btCollisionShape> child;
+        btTransform local = btTransform::getIdentity();
+        if (s.is_sphere()) {
+          child = std::make_unique<btSphereShape>(s.radius);
+          local.setOrigin(to_bt(s.from - b.com));
+        } else if (s.sphere_pair) {
+          const btVector3 centres[2] = {to_bt(s.from - b.com), to_bt(s.to - b.com)};
+          const btScalar radii[2] = {s.radius, s.radius};
+          child = std::make_unique<btMultiSphereShape>(centres, radii, 2);
+        } else {
+          const Eigen::Vector3d d = s.to - s.from;
+          child = std::make_unique<btCapsuleShapeZ>(s.radius, d.norm());
+          const Eigen::Quaterniond q = capsule_rotation(d);
+          local.setOrigin(to_bt(0.5 * (s.from + s.to) - b.com));
+          local.setRotation(btQuaternion(q.x(), q.y(), q.z(), q.w()));
+        }
+        compound->addChildShape(local, child.get());
+        shapes_.push_back(std::move(child));
       }
-      compound->addChildShape(local, child.get());
-      shapes_.push_back(std::move(child));
+      shape = compound.get();
+      shapes_.push_back(std::move(compound));
     }
     auto collider = std::make_unique<btMultiBodyLinkCollider>(body_.get(), i);
-    collider->setCollisionShape(compound.get());
+    collider->setCollisionShape(shape);
     collider->setFriction(b.friction);
     collider->setRestitution(b.restitution);
-    shapes_.push_back(std::move(compound));
     if (i < 0) {
       body_->setBaseCollider(collider.get());
     } else {
       body_->getLink(i).m_collider = collider.get();
     }
-    world_.addCollisionObject(collider.get(), b.collides ? b.collision_group : 0,
-                              b.collides ? b.collision_mask : 0);
+    const bool collides = b.collides && !b.shapes.empty();
+    world_.addCollisionObject(collider.get(), collides ? b.collision_group : 0,
+                              collides ? b.collision_mask : 0);
+    link_colliders_[i + 1] = collider.get();
     colliders_.push_back(std::move(collider));
   }
   pending_forces_.assign(n, 0.0);
@@ -308,12 +368,39 @@ Eigen::Isometry3d Robot::body_pose(int link) const {
   return to_eigen(t);
 }
 
+Eigen::Vector3d Robot::com_position(int link) const {
+  if (link < 0) return to_eigen(body_->getBasePos());
+  return to_eigen(body_->getLink(bullet_link(link)).m_cachedWorldTransform.getOrigin());
+}
+
+Eigen::Quaterniond Robot::com_orientation(int link) const {
+  if (link < 0) return base_orientation();
+  const btQuaternion q = body_->getLink(bullet_link(link)).m_cachedWorldTransform.getRotation();
+  return {q.w(), q.x(), q.y(), q.z()};
+}
+
+Eigen::Vector3d Robot::com_linear_velocity(int link) const {
+  if (link < 0) return base_linear_velocity();
+  const int i = bullet_link(link);
+  btAlignedObjectArray<btVector3> omega, velocity;
+  omega.resize(num_links() + 1);
+  velocity.resize(num_links() + 1);
+  body_->compTreeLinkVelocities(&omega[0], &velocity[0]);
+  // Bullet gives each link's velocity in the link's frame; turned into the world with the cached pose.
+  return to_eigen(body_->getLink(i).m_cachedWorldTransform.getBasis() * velocity[i + 1]);
+}
+
+const btMultiBodyLinkCollider* Robot::collider(int link) const {
+  check(link >= -1 && link < num_links(), "robot '{}': link {} out of range", spec_.name, link);
+  return link_colliders_[link + 1];
+}
+
 std::vector<Shape> Robot::world_shapes(int link) const {
   const BodySpec& b = link < 0 ? static_cast<const BodySpec&>(spec_.base) : spec_.links[bullet_link(link)];
   const Eigen::Isometry3d pose = body_pose(link);
   std::vector<Shape> out;
   for (const Shape& s : b.shapes)
-    out.push_back({pose * (s.from - b.com), pose * (s.to - b.com), s.radius});
+    out.push_back({pose * (s.from - b.com), pose * (s.to - b.com), s.radius, s.sphere_pair});
   return out;
 }
 

@@ -27,11 +27,20 @@ struct Shape {
   Eigen::Vector3d from = Eigen::Vector3d::Zero();
   Eigen::Vector3d to = Eigen::Vector3d::Zero();
   double radius = 0.0;
+  // A capsule built as two spheres and their hull (btMultiSphereShape), as PyBullet builds an MJCF "fromto"
+  // capsule, instead of a btCapsuleShapeZ. The surface is the same, but Bullet's collision margin, bounding
+  // box and hence contact-breaking threshold and inertia estimate differ.
+  bool sphere_pair = false;
 
   static Shape capsule(const Eigen::Vector3d& from, const Eigen::Vector3d& to, double radius) {
-    return {from, to, radius};
+    return {from, to, radius, false};
   }
-  static Shape sphere(const Eigen::Vector3d& centre, double radius) { return {centre, centre, radius}; }
+  static Shape sphere_pair_capsule(const Eigen::Vector3d& from, const Eigen::Vector3d& to, double radius) {
+    return {from, to, radius, true};
+  }
+  static Shape sphere(const Eigen::Vector3d& centre, double radius) {
+    return {centre, centre, radius, false};
+  }
   bool is_sphere() const { return from == to; }
 };
 
@@ -42,8 +51,9 @@ struct BodySpec {
   Eigen::Vector3d inertia = Eigen::Vector3d::Zero();  // principal moments about the COM, world-aligned axes
   Eigen::Vector3d com = Eigen::Vector3d::Zero();      // world position at the zero configuration
   std::vector<Shape> shapes;
-  // Every body with shapes gets a collider (Bullet needs one to place the body's constraints in a simulation
-  // island); one that does not collide is filtered out of every pair.
+  // Every link gets a collider, an empty one when it has no shapes (Bullet places a link's joint-limit
+  // constraint in a simulation island by the link's own collider, as PyBullet's import does too); one that
+  // does not collide is filtered out of every pair.
   bool collides = false;
   double friction = 0.8;
   double restitution = 0.0;
@@ -59,6 +69,11 @@ struct LinkSpec : BodySpec {
   Eigen::Vector3d anchor = Eigen::Vector3d::Zero();  // joint position, world, zero configuration
   Eigen::Vector3d axis = Eigen::Vector3d::UnitY();   // joint axis, world, zero configuration
   std::optional<std::pair<double, double>> limits;   // [lower, upper], enforced by a limit constraint
+  // The same placement as offsets between frames (parent COM to pivot, pivot to this COM), for a description
+  // that has them in local form: derived from world positions they can differ in the last bits, which long
+  // chaotic runs amplify. When set, they are used as given.
+  std::optional<Eigen::Vector3d> parent_com_to_pivot;
+  std::optional<Eigen::Vector3d> pivot_to_com;
 };
 
 struct RobotSpec {
@@ -67,6 +82,11 @@ struct RobotSpec {
   bool fixed_base = true;
   std::vector<LinkSpec> links;  // a link's parent comes before it
   bool self_collision = false;
+  // Give every revolute and prismatic joint a switched-off motor (maximum impulse 0), added after all limit
+  // constraints, as PyBullet does for every body it loads. The motors produce no solver rows, but they take
+  // places in Bullet's constraint list, whose (unstable) sort by island decides the order in which joint
+  // limits that are active together get solved, and so the result to the last bits and beyond.
+  bool disabled_motors = false;
 };
 
 // The planar root PyBullet gives a body whose MJCF root has slide-x, slide-z and hinge-y joints: a massless
@@ -90,6 +110,10 @@ Eigen::Vector3d capsule_inertia(double mass, double radius, double half_length, 
 // bounding box includes the collision margin on every side.
 Eigen::Vector3d fromto_capsule_inertia(double mass, const Eigen::Vector3d& from, const Eigen::Vector3d& to,
                                        double radius);
+// The moments Bullet estimates for a body's collision shape, as PyBullet's MJCF import uses them: a single
+// sphere centred on the COM is a solid sphere (0.4 m r^2); anything else is a compound, whose estimate is the
+// box of its bounding box about `com` (sphere pairs include Bullet's 0.04 m margin, capsules do not).
+Eigen::Vector3d estimated_inertia(double mass, const std::vector<Shape>& shapes, const Eigen::Vector3d& com);
 
 class World;
 
@@ -123,6 +147,13 @@ class Robot {
 
   // The pose of a body frame (its COM; world-aligned at the zero configuration). link -1 is the base.
   Eigen::Isometry3d body_pose(int link) const;
+  // The COM pose and velocity as PyBullet's getLinkState / getBasePositionAndOrientation report them. A
+  // link's pose is Bullet's cached one, which World::step leaves as it was at the start of the last sub-step
+  // (Bullet refreshes it before each sub-step's solve); the base pose and all velocities are current. link -1
+  // is the base.
+  Eigen::Vector3d com_position(int link) const;
+  Eigen::Quaterniond com_orientation(int link) const;
+  Eigen::Vector3d com_linear_velocity(int link) const;
   // A body's shapes in world coordinates at the current configuration.
   std::vector<Shape> world_shapes(int link) const;
 
@@ -137,6 +168,8 @@ class Robot {
 
   btMultiBody& multibody() { return *body_; }
   const btMultiBody& multibody() const { return *body_; }
+  // The link's collider (link -1: the base's; null when the base has none).
+  const btMultiBodyLinkCollider* collider(int link) const;
 
  private:
   friend class World;
@@ -151,6 +184,7 @@ class Robot {
   std::unique_ptr<btMultiBody> body_;
   std::vector<std::unique_ptr<btMultiBodyConstraint>> limits_;
   std::vector<std::unique_ptr<btMultiBodyLinkCollider>> colliders_;
+  std::vector<const btMultiBodyLinkCollider*> link_colliders_;  // by link index + 1 (base first)
   std::vector<std::unique_ptr<btCollisionShape>> shapes_;
   std::vector<double> pending_forces_;
   bool has_pending_forces_ = false;

@@ -38,19 +38,30 @@ class World {
   Robot& add_robot(RobotSpec spec);
   // A static plane z = 0.
   void add_ground(double friction, double restitution);
+  // Both of the above end by setting up the contact cache for the new set of objects (see save_state).
 
   // Advances `dt` seconds in `substeps` equal sub-steps. Each robot's pending joint forces act during every
   // sub-step (as a torque set before PyBullet's stepSimulation does) and are cleared afterwards.
   void step(double dt, int substeps = 1);
 
-  // All robots' states, concatenated. Exact for worlds without contacts: the next steps are reproduced bit
-  // for bit. Contact caches (persistent manifolds) are not part of it, see has_contacts().
+  // All robots' states, then the contact points Bullet keeps between steps (its persistent manifolds, which
+  // warm-start the solver and decide which points survive). Restoring reproduces the next steps bit for bit,
+  // with or without contacts. The set of manifolds is fixed when the world is built: every pair that can
+  // touch gets its manifold then (pairs with a ground plane never separate in Bullet's broadphase), so a
+  // snapshot fits any world built the same way.
   std::vector<double> save_state() const;
+  // Throws hlt::Error (leaving the world untouched) for a snapshot of the wrong size or with NaN/Inf values.
   void restore_state(const std::vector<double>& state);
   bool state_is_finite() const;
-  // Whether anything in this world can collide (then a restored state may differ in the contact points Bullet
-  // keeps between steps).
+  // Forgets all contact points (as after building), so that what follows does not depend on past contacts.
+  void clear_contacts();
+  // Whether anything in this world can collide.
   bool has_contacts() const;
+  // The contact points `link` of `robot` (-1: the base) has with static objects (the ground) after the last
+  // sub-step's collision detection. Bullet keeps up to 4 per pair, including points up to its
+  // contact-breaking threshold apart.
+  int ground_contact_points(const Robot& robot, int link) const;
+  bool touches_ground(const Robot& robot, int link) const { return ground_contact_points(robot, link) > 0; }
 
   btMultiBodyDynamicsWorld& bullet() { return *world_; }
   const btMultiBodyDynamicsWorld& bullet() const { return *world_; }
@@ -65,6 +76,9 @@ class World {
   std::vector<std::unique_ptr<Robot>> robots_;
   std::vector<std::unique_ptr<btCollisionShape>> static_shapes_;
   std::vector<std::unique_ptr<btCollisionObject>> static_objects_;
+
+  void setup_contact_cache();
+  size_t robots_state_size() const;
 };
 
 }  // namespace hlt::bullet

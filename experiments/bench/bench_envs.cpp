@@ -1,7 +1,9 @@
-// Environment costs: one step (random actions, episodes reset outside the timing), a snapshot save+restore
-// pair (what a planner pays per branch) and one rendered frame, for every registered environment.
+// Environment costs: one step (random actions, and smooth ones; episodes reset outside the timing), a
+// snapshot save+restore pair (what a planner pays per branch) and one rendered frame, for every registered
+// environment.
 #include <benchmark/benchmark.h>
 
+#include <cmath>
 #include <random>
 #include <string>
 #include <vector>
@@ -40,6 +42,29 @@ void env_step(benchmark::State& state, const std::string& name, int frame_skip) 
   state.SetItemsProcessed(state.iterations());
 }
 
+// The same with smooth actions a_i = sin(0.3 t + i): the locomotion robots stay on their feet (or on the
+// ground) longer than under random actions, so more of the steps carry contacts.
+void env_step_smooth(benchmark::State& state, const std::string& name) {
+  std::unique_ptr<Env> env = make_env(name);
+  env->reset(0);
+  Eigen::VectorXd a(env->action_dim());
+  long t = 0;
+  for (auto _ : state) {
+    for (int i = 0; i < a.size(); ++i)
+      a[i] = std::sin(0.3 * t + i);
+    ++t;
+    const StepResult r = env->step(a);
+    benchmark::DoNotOptimize(r.reward);
+    if (r.done()) {
+      state.PauseTiming();
+      env->reset();
+      t = 0;
+      state.ResumeTiming();
+    }
+  }
+  state.SetItemsProcessed(state.iterations());
+}
+
 void env_save_restore(benchmark::State& state, const std::string& name) {
   std::unique_ptr<Env> env = make_env(name);
   env->reset(0);
@@ -64,6 +89,7 @@ void env_render(benchmark::State& state, const std::string& name) {
 const bool registered = [] {
   for (const std::string& name : env_names()) {
     benchmark::RegisterBenchmark(("BM_EnvStep/" + name).c_str(), env_step, name, 1);
+    benchmark::RegisterBenchmark(("BM_EnvStepSmooth/" + name).c_str(), env_step_smooth, name);
     benchmark::RegisterBenchmark(("BM_EnvSaveRestore/" + name).c_str(), env_save_restore, name);
     benchmark::RegisterBenchmark(("BM_EnvRender/" + name).c_str(), env_render, name);
   }

@@ -158,12 +158,8 @@ TEST(BulletWorld, SnapshotsWithoutContactsAreExact) {
   EXPECT_THROW(world.restore_state(bad), Error);
 }
 
-TEST(BulletWorld, SnapshotsWithContacts) {
-  // Bullet keeps contact points between steps (persistent manifolds); the snapshot does not carry them, so
-  // after a restore the contact set is rebuilt from the restored poses. This measures the effect on a capsule
-  // tumbling onto the ground (several contact points that come and go); the figure is reported, not hidden.
-  World world;
-  world.add_ground(0.8, 0.5);
+// A capsule (2 kg) thrown spinning onto the ground, so that contact points come and go.
+RobotSpec stick() {
   RobotSpec spec;
   spec.name = "stick";
   spec.fixed_base = false;
@@ -172,29 +168,84 @@ TEST(BulletWorld, SnapshotsWithContacts) {
   spec.base.com = Eigen::Vector3d(0, 0, 0.6);
   spec.base.shapes = {Shape::capsule({-0.3, 0, 0.6}, {0.3, 0, 0.6}, 0.05)};
   spec.base.collides = true;
-  Robot& b = world.add_robot(spec);
+  return spec;
+}
+
+void throw_stick(Robot& b) {
   b.set_base_state({0, 0, 0.6},
                    Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 2, 0).normalized())),
                    {1.0, 0.3, 0}, {2.0, -1.0, 3.0});
-  double worst = 0;
+}
+
+TEST(BulletWorld, SnapshotsWithContactsAreExact) {
+  // Bullet keeps contact points between steps (persistent manifolds: they warm-start the solver and decide
+  // which points survive); the snapshot carries them, so a restore reproduces the next steps bit for bit,
+  // also in a second world built the same way.
+  World world, other;
+  world.add_ground(0.8, 0.5);
+  other.add_ground(0.8, 0.5);
+  Robot& b = world.add_robot(stick());
+  Robot& c = other.add_robot(stick());
+  throw_stick(b);
   for (int start : {20, 40, 60}) {
     for (int i = 0; i < start; ++i)
       world.step(0.0165, 4);
     const std::vector<double> snap = world.save_state();
     std::vector<Eigen::Vector3d> first;
+    int touching = 0;
     for (int i = 0; i < 60; ++i) {
       world.step(0.0165, 4);
       first.push_back(b.base_position());
+      touching += world.touches_ground(b, -1);
     }
+    EXPECT_GT(touching, 0) << "the stick should be on the ground at some point";
     world.restore_state(snap);
+    other.restore_state(snap);
     for (int i = 0; i < 60; ++i) {
       world.step(0.0165, 4);
-      worst = std::max(worst, (b.base_position() - first[i]).norm());
+      other.step(0.0165, 4);
+      ASSERT_EQ(b.base_position(), first[i]) << "start " << start << " step " << i;
+      ASSERT_EQ(c.base_position(), first[i]) << "start " << start << " step " << i;
     }
   }
-  std::cout << "  tumbling capsule, 60 steps after a restore: largest position difference " << worst
-            << " m\n";
-  EXPECT_LT(worst, 1e-2);
+  // A snapshot of a world with a different set of contact pairs is refused.
+  World lone;
+  lone.add_robot(stick());
+  EXPECT_THROW(lone.restore_state(world.save_state()), Error);
+}
+
+TEST(BulletWorld, ContactCacheMattersAndCanBeCleared) {
+  // The same poses and velocities with and without the remembered contact points lead to different motion
+  // (that is why snapshots carry them); after clear_contacts() the past no longer matters.
+  World world;
+  world.add_ground(0.8, 0.5);
+  Robot& b = world.add_robot(stick());
+  throw_stick(b);
+  // Once the stick lies on the ground with points at both ends: a fresh cache starts with one of them.
+  int steps = 0;
+  while (world.ground_contact_points(b, -1) < 2 && steps < 200) {
+    world.step(0.0165, 4);
+    ++steps;
+  }
+  ASSERT_EQ(world.ground_contact_points(b, -1), 2) << steps;
+  std::vector<double> bodies = b.save_state();
+  const auto run = [&](World& w, Robot& r) {
+    for (int i = 0; i < 30; ++i)
+      w.step(0.0165, 4);
+    return r.base_position();
+  };
+  World fresh;
+  fresh.add_ground(0.8, 0.5);
+  Robot& f = fresh.add_robot(stick());
+  f.restore_state(bodies.data(), bodies.size());
+  const Eigen::Vector3d without_cache = run(fresh, f);
+  b.restore_state(bodies.data(), bodies.size());
+  const Eigen::Vector3d with_cache = run(world, b);
+  EXPECT_NE(with_cache, without_cache);
+  b.restore_state(bodies.data(), bodies.size());
+  world.clear_contacts();
+  EXPECT_FALSE(world.touches_ground(b, -1));
+  EXPECT_EQ(run(world, b), without_cache);
 }
 
 TEST(BulletWorld, RecoversFromANonFiniteState) {
