@@ -27,7 +27,11 @@ struct Setup {
 Setup make_setup(const benchmark::State& st) {
   set_torch_threads(1);
   torch::manual_seed(0);
-  Setup s{st.range(0), st.range(1), st.range(2), st.range(3)};
+  Setup s;
+  s.n = st.range(0);
+  s.m = st.range(1);
+  s.K = st.range(2);
+  s.H = st.range(3);
   const Activation act = s.n <= 6 ? Activation::kSin : Activation::kRelu;
   s.dynamics = DynamicsModel(DynamicsModelOptions{s.n, s.m, 200, act});
   s.reward = RewardModel(RewardModelOptions{s.n, s.m, 200});

@@ -59,7 +59,10 @@ const std::string kSmall =
 TEST(TrainCli, RejectsBadInputWithClearMessages) {
   Result r = run(kTrain + " --env moonwalk --steps 10 --out " + fresh_dir("bad_env"));
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.output.find("expected one of: acrobot, cartpole_swingup"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("config key 'env' in --env: expected one of: acrobot, ant, cartpole_swingup"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("got 'moonwalk'"), std::string::npos) << r.output;
   r = run(kTrain + " --env pendulum --method magic --out " + fresh_dir("bad_method"));
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("hybrid-stochastic"), std::string::npos) << r.output;
