@@ -70,21 +70,22 @@ void DeterministicHybridBench(benchmark::State& st) {
     benchmark::DoNotOptimize(c.act(s.state));
 }
 
-// The matrix products of one stochastic planning call: per step, the policy's two heads (two layers each),
-// the dynamics (two layers) and the reward (three layers), all at batch K, into preallocated outputs.
-void StochasticHybridFloor(benchmark::State& st) {
+// The matrix products of one stochastic planning call: per step, the policy's two heads (two layers each;
+// skipped for NN-MPPI, which has no policy), the dynamics (two layers) and the reward (three layers), all at
+// batch K, into preallocated outputs.
+void stochastic_floor(benchmark::State& st, bool with_policy) {
   Setup s = make_setup(st);
   torch::InferenceMode guard;
   const auto K = s.K, n = s.n, m = s.m;
   auto x = torch::randn({K, n}), xa = torch::randn({K, n + m});
-  auto h = torch::empty({K, 128}), u = torch::empty({K, m}), hd = torch::empty({K, 200}),
-       d = torch::empty({K, n}), hr = torch::empty({K, 200}), r = torch::empty({K, 1});
+  auto h = torch::empty({K, 128}), u = torch::empty({K, m}), hd = torch::empty({K, 200}), d = torch::empty({K, n}),
+       hr = torch::empty({K, 200}), r = torch::empty({K, 1});
   auto pw1 = torch::randn({n, 128}), pw2 = torch::randn({128, m}), dw1 = torch::randn({n + m, 200}),
        dw2 = torch::randn({200, n}), rw1 = torch::randn({n + m, 200}), rw2 = torch::randn({200, 200}),
        rw3 = torch::randn({200, 1});
   for (auto _ : st) {
     for (int64_t t = 0; t < s.H; ++t) {
-      for (int head = 0; head < 2; ++head) {
+      for (int head = 0; with_policy && head < 2; ++head) {
         at::mm_out(h, x, pw1);
         at::mm_out(u, h, pw2);
       }
@@ -98,27 +99,8 @@ void StochasticHybridFloor(benchmark::State& st) {
   }
 }
 
-// The same without the policy: NN-MPPI's floor.
-void MPPIFloor(benchmark::State& st) {
-  Setup s = make_setup(st);
-  torch::InferenceMode guard;
-  const auto K = s.K, n = s.n, m = s.m;
-  auto xa = torch::randn({K, n + m});
-  auto hd = torch::empty({K, 200}), d = torch::empty({K, n}), hr = torch::empty({K, 200}),
-       r = torch::empty({K, 1});
-  auto dw1 = torch::randn({n + m, 200}), dw2 = torch::randn({200, n}), rw1 = torch::randn({n + m, 200}),
-       rw2 = torch::randn({200, 200}), rw3 = torch::randn({200, 1});
-  for (auto _ : st) {
-    for (int64_t t = 0; t < s.H; ++t) {
-      at::mm_out(hd, xa, dw1);
-      at::mm_out(d, hd, dw2);
-      at::mm_out(hr, xa, rw1);
-      at::mm_out(hd, hr, rw2);
-      at::mm_out(r, hd, rw3);
-    }
-    benchmark::DoNotOptimize(r.data_ptr());
-  }
-}
+void StochasticHybridFloor(benchmark::State& st) { stochastic_floor(st, true); }
+void MPPIFloor(benchmark::State& st) { stochastic_floor(st, false); }
 
 // The deterministic planner's products: the batch-1 rollout (policy two heads at step 0, mean head after;
 // dynamics), the Jacobian pass forward at batches H n (dynamics), H m (policy mean) and H (reward), and the
