@@ -104,7 +104,8 @@ def print_table(groups, methods, tag, args):
             grid, mean, _ = mean_band(curves, 0)
             hits = grid[mean >= args.threshold]
             first = f" {int(hits[0])} |" if len(hits) else " not reached |"
-        for step in steps or [min(xs[-1] for xs, _ in curves)]:
+        last = min(xs[-1] for xs, _ in curves)
+        for step in [s for s in steps if s <= last] or [last]:
             values = [float(np.interp(step, xs, ys)) for xs, ys in curves]
             per_seed = ", ".join(f"{v:.1f}" for v in values)
             print(f"| {method} | {len(values)} | {step} | {np.mean(values):.1f} +- {np.std(values):.1f} | {per_seed} |"
