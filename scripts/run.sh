@@ -15,7 +15,7 @@ if [ -f "$out/config.yaml" ]; then
   build/experiments/hlt_train --resume "$out" --steps "$steps"
 else
   build/experiments/hlt_train --env cartpole_swingup --method hybrid-stochastic --seed 0 --steps "$steps" \
-    --out "$out" eval.every=500
+    --out "$out"
 fi
 /usr/bin/python3 experiments/hlt_plot.py "$run_dir" --out "$run_dir/learning_curve.png" \
   --tags eval/return_mean,eval/policy_return_mean,eval/planner_return_mean \
