@@ -19,7 +19,7 @@ else
 fi
 /usr/bin/python3 experiments/hlt_plot.py "$run_dir" --out "$run_dir/learning_curve.png" \
   --tags eval/return_mean,eval/policy_return_mean,eval/planner_return_mean \
-  --title "cart-pole swing-up: stochastic hybrid learning (hybrid, policy alone, planner alone)"
+  --title "cart-pole swing-up, stochastic hybrid learning"
 build/experiments/hlt_rollout --env cartpole_swingup --policy "checkpoint:$out/final.pt" --episodes 1 \
   --strip "$run_dir/policy_strip.png" > /dev/null
 echo "results: $out/scalars.csv (log), $out/config.yaml (resolved config), $out/final.pt (networks)"
