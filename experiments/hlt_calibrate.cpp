@@ -31,22 +31,15 @@ void render_demo(const std::string& dir, cv::Size inner, double square) {
   // Distances chosen so the board fills about two thirds of the image, whatever its size.
   const double scale = (std::max(inner.width, inner.height) + 3) * square / 0.33;
   int i = 0;
-  for (double tilt_x : {-30.0, 0.0, 30.0})
-    for (double tilt_y : {-25.0, 25.0})
-      for (double shift : {-0.06, 0.06}) {
-        const Eigen::Isometry3d pose =
-            Eigen::Translation3d(shift * scale, 0.5 * shift * scale, (0.45 + 0.05 * (i % 3)) * scale) *
-            Eigen::AngleAxisd(tilt_x * M_PI / 180, Eigen::Vector3d::UnitX()) *
-            Eigen::AngleAxisd(tilt_y * M_PI / 180, Eigen::Vector3d::UnitY()) *
-            Eigen::AngleAxisd(0.1 * i, Eigen::Vector3d::UnitZ());
-        hlt::ImageEffects e;
-        e.noise_sigma = 1.0;
-        e.seed = static_cast<uint64_t>(i);
-        const cv::Mat img = renderer.render({hlt::TabletopScene::checkerboard_quad(inner, square, pose)},
-                                            Eigen::Isometry3d::Identity(), e);
-        const std::string path = fmt::format("{}/view_{:02d}.png", dir, i++);
-        hlt::check(cv::imwrite(path, img), "cannot write {}", path);
-      }
+  for (const Eigen::Isometry3d& pose : hlt::TabletopScene::checkerboard_calibration_poses(scale)) {
+    hlt::ImageEffects e;
+    e.noise_sigma = 1.0;
+    e.seed = static_cast<uint64_t>(i);
+    const cv::Mat img = renderer.render({hlt::TabletopScene::checkerboard_quad(inner, square, pose)},
+                                        Eigen::Isometry3d::Identity(), e);
+    const std::string path = fmt::format("{}/view_{:02d}.png", dir, i++);
+    hlt::check(cv::imwrite(path, img), "cannot write {}", path);
+  }
   std::printf("wrote %d synthetic views to %s; true fx %.2f fy %.2f cx %.2f cy %.2f k1 %.3f k2 %.3f\n", i,
               dir.c_str(), truth.fx(), truth.fy(), truth.cx(), truth.cy(), truth.distortion()[0],
               truth.distortion()[1]);

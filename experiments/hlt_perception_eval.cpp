@@ -167,21 +167,15 @@ void calibration_table() {
   for (double noise : {0.0, 1.0, 3.0}) {
     CheckerboardCalibrator calibrator(inner, 0.03);
     int i = 0;
-    for (double tilt_x : {-30.0, 0.0, 30.0})
-      for (double tilt_y : {-25.0, 25.0})
-        for (double shift : {-0.06, 0.06}) {
-          const Eigen::Isometry3d pose = Eigen::Translation3d(shift, 0.5 * shift, 0.45 + 0.05 * (i % 3)) *
-                                         Eigen::AngleAxisd(tilt_x * M_PI / 180, Eigen::Vector3d::UnitX()) *
-                                         Eigen::AngleAxisd(tilt_y * M_PI / 180, Eigen::Vector3d::UnitY()) *
-                                         Eigen::AngleAxisd(0.1 * i, Eigen::Vector3d::UnitZ());
-          ImageEffects e;
-          e.noise_sigma = noise;
-          e.seed = static_cast<uint64_t>(i);
-          calibrator.add_image(renderer.render({TabletopScene::checkerboard_quad(inner, 0.03, pose)},
-                                               Eigen::Isometry3d::Identity(), e),
-                               std::to_string(i));
-          ++i;
-        }
+    for (const Eigen::Isometry3d& pose : TabletopScene::checkerboard_calibration_poses()) {
+      ImageEffects e;
+      e.noise_sigma = noise;
+      e.seed = static_cast<uint64_t>(i);
+      calibrator.add_image(renderer.render({TabletopScene::checkerboard_quad(inner, 0.03, pose)},
+                                           Eigen::Isometry3d::Identity(), e),
+                           std::to_string(i));
+      ++i;
+    }
     const CalibrationResult r = calibrator.calibrate(cv::CALIB_FIX_K3);
     auto rel = [](double a, double b) { return fmt::format("{:+.3f}%", 100 * (a - b) / b); };
     std::printf("| %.0f | %zu | %.3f | %s | %s | %s | %s | %.4f |\n", noise, r.used.size(), r.rms,

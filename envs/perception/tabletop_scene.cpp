@@ -76,6 +76,24 @@ TexturedQuad TabletopScene::tag_quad(const TagFamily& family, int id, double siz
   return q;
 }
 
+std::vector<Eigen::Isometry3d> TabletopScene::checkerboard_calibration_poses(double scale) {
+  std::vector<Eigen::Isometry3d> poses;
+  int i = 0;
+  for (double tilt_x : {-30.0, 0.0, 30.0}) {
+    for (double tilt_y : {-25.0, 25.0}) {
+      for (double shift : {-0.06, 0.06}) {
+        poses.push_back(
+            Eigen::Translation3d(shift * scale, 0.5 * shift * scale, (0.45 + 0.05 * (i % 3)) * scale) *
+            Eigen::AngleAxisd(tilt_x * M_PI / 180, Eigen::Vector3d::UnitX()) *
+            Eigen::AngleAxisd(tilt_y * M_PI / 180, Eigen::Vector3d::UnitY()) *
+            Eigen::AngleAxisd(0.1 * i, Eigen::Vector3d::UnitZ()));
+        ++i;
+      }
+    }
+  }
+  return poses;
+}
+
 TexturedQuad TabletopScene::checkerboard_quad(cv::Size inner, double square,
                                               const Eigen::Isometry3d& world_from_board) {
   check(inner.width >= 2 && inner.height >= 2 && square > 0,

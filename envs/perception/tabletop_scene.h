@@ -68,6 +68,9 @@ class TabletopScene {
   // 2) * square, 0) in the board frame.
   static TexturedQuad checkerboard_quad(cv::Size inner_corners, double square,
                                         const Eigen::Isometry3d& world_from_board);
+  // Twelve varied board poses in the camera frame for calibration from rendered views: 0.45-0.55 m away
+  // (times `scale`), off-centre, tilted up to 30 degrees about x and 25 about y, rolled a little each.
+  static std::vector<Eigen::Isometry3d> checkerboard_calibration_poses(double scale = 1.0);
   // The six faces of a box centred at `world_from_box` with edge lengths `size`.
   static std::vector<TexturedQuad> box(const Eigen::Isometry3d& world_from_box, const Eigen::Vector3d& size,
                                        cv::Vec3b colour);
