@@ -2,7 +2,6 @@
 
 #include <torch/torch.h>
 
-#include "hlt/control/policy_controller.h"
 #include "hlt/nn/batched_forward.h"
 #include "hlt/util/error.h"
 
@@ -39,18 +38,6 @@ at::Tensor Controller::act(const at::Tensor& state) {
     a = a.max(T(-1)).min(T(1));
   });
   return action;
-}
-
-PolicyController::PolicyController(GaussianPolicy policy, bool deterministic)
-    : Controller(policy), policy_(std::move(policy)), deterministic_(deterministic) {
-  check(!policy_.is_empty(), "PolicyController needs a policy");
-}
-
-at::Tensor PolicyController::compute_action(const at::Tensor& state) {
-  torch::InferenceMode guard;
-  const auto dtype = policy_->parameters().front().scalar_type();
-  const at::Tensor s = state.to(dtype).unsqueeze(0);
-  return (deterministic_ ? policy_->mean_action(s) : policy_->rsample(s).action).squeeze(0);
 }
 
 }  // namespace hlt
