@@ -7,6 +7,7 @@
 #include <cmath>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -34,13 +35,14 @@ bool is_checkpoint(const std::string& spec) {
   return spec.rfind(kCheckpointPrefix, 0) == 0;
 }
 
-// The policy named on the command line: a simple one, or the mean action of a policy trained by hlt_train.
-std::unique_ptr<PolicySource> make_policy(const std::string& spec, const Env& env, uint64_t seed) {
-  if (is_checkpoint(spec)) {
-    SavedPolicy saved = load_saved_policy(spec.substr(std::string(kCheckpointPrefix).size()));
-    check(saved.env == env.name(), "--policy {}: the policy was trained on {}, not {}", spec, saved.env,
+// The policy named on the command line: a simple one, or (`saved`, loaded from "checkpoint:PATH") the mean
+// action of a policy trained by hlt_train.
+std::unique_ptr<PolicySource> make_policy(const std::string& spec, std::optional<SavedPolicy>& saved,
+                                          const Env& env, uint64_t seed) {
+  if (saved) {
+    check(saved->env == env.name(), "--policy {}: the policy was trained on {}, not {}", spec, saved->env,
           env.name());
-    return std::move(saved.source);
+    return std::move(saved->source);
   }
   return make_simple_policy(spec, env.action_dim(), seed);
 }
@@ -128,16 +130,18 @@ struct Options {
 };
 
 int run(Options o, bool frame_skip_given) {
-  if (is_checkpoint(o.policy) && !frame_skip_given) {
+  std::optional<SavedPolicy> saved;
+  if (is_checkpoint(o.policy)) {
+    saved = load_saved_policy(o.policy.substr(std::string(kCheckpointPrefix).size()));
     // Act at the rate the policy was trained at unless told otherwise.
-    o.frame_skip = load_saved_policy(o.policy.substr(std::string(kCheckpointPrefix).size())).frame_skip;
+    if (!frame_skip_given) o.frame_skip = saved->frame_skip;
   }
   std::unique_ptr<Env> env = make_env(o.env);
   if (o.frame_skip != 1) env = std::make_unique<FrameSkip>(std::move(env), o.frame_skip);
   check(o.episodes >= 1, "--episodes must be at least 1, got {}", o.episodes);
   check(o.width >= 16 && o.height >= 16, "--width and --height must be at least 16");
   // The policy's randomness is its own stream, so changing the policy never changes the environment's starts.
-  std::unique_ptr<PolicySource> policy = make_policy(o.policy, *env, derive_seed(o.seed, 1));
+  std::unique_ptr<PolicySource> policy = make_policy(o.policy, saved, *env, derive_seed(o.seed, 1));
   // Output names are checked before any work is done.
   if (!o.video.empty()) {
     const std::string ext = extension(o.video);
