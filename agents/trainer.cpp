@@ -70,6 +70,9 @@ struct Trainer::Impl {
   std::vector<std::pair<std::string, std::unique_ptr<Controller>>> evaluators;  // label, controller
   std::unique_ptr<ScalarLogger> log;
 
+  // Per-step settings, read from the config once.
+  int64_t update_after = 0, batch_size = 0, sac_updates = 0, model_updates = 0, eval_every = 0;
+
   // Counters (checkpointed).
   int64_t agent_steps = 0, env_steps = 0, episodes = 0, evaluations = 0;
   double wall_before = 0;  // seconds spent in earlier sessions of this run
@@ -138,6 +141,11 @@ struct Trainer::Impl {
       evaluators.emplace_back("planner", make_controller(method->planner_controller, models, config, true));
     }
     next_checkpoint = config.get_int("checkpoint.every");
+    update_after = config.get_int("train.update_after");
+    batch_size = config.get_int("train.batch_size");
+    sac_updates = config.get_int("train.sac_updates");
+    model_updates = config.get_int("train.model_updates");
+    eval_every = config.get_int("eval.every");
   }
 
   at::Tensor act(Controller& c, const Eigen::VectorXd& state) {
@@ -194,7 +202,6 @@ struct Trainer::Impl {
     update();
     ep_update_seconds += seconds_since(t0);
 
-    const int64_t eval_every = config.get_int("eval.every");
     if (eval_every > 0 && agent_steps % eval_every == 0) {
       t0 = Clock::now();
       evaluate();
@@ -204,11 +211,10 @@ struct Trainer::Impl {
   }
 
   void update() {
-    if (buffer->size() < config.get_int("train.update_after")) return;
-    const int64_t batch = config.get_int("train.batch_size");
+    if (buffer->size() < update_after) return;
     if (sac) {
-      for (int64_t i = 0; i < config.get_int("train.sac_updates"); ++i) {
-        const SacLosses l = sac->update(buffer->sample(batch));
+      for (int64_t i = 0; i < sac_updates; ++i) {
+        const SacLosses l = sac->update(buffer->sample(batch_size));
         critic_loss.add(l.critic);
         actor_loss.add(l.actor);
         alpha.add(l.alpha);
@@ -216,8 +222,8 @@ struct Trainer::Impl {
       }
     }
     if (learner) {
-      for (int64_t i = 0; i < config.get_int("train.model_updates"); ++i) {
-        const ModelLosses l = learner->update(buffer->sample(batch));
+      for (int64_t i = 0; i < model_updates; ++i) {
+        const ModelLosses l = learner->update(buffer->sample(batch_size));
         dyn_loss.add(l.dynamics);
         rew_loss.add(l.reward);
       }
@@ -422,7 +428,7 @@ void Trainer::run(bool progress) {
     return;
   }
   ProgressBar bar(s.agent_steps, total, progress);
-  if (s.agent_steps == 0 && s.config.get_int("eval.every") > 0) s.evaluate();
+  if (s.agent_steps == 0 && s.eval_every > 0) s.evaluate();
   while (s.agent_steps < total) {
     s.step();
     bar.set("return", s.last_return);
@@ -432,8 +438,7 @@ void Trainer::run(bool progress) {
   bar.finish();
   // A final evaluation if the last step did not just have one; the final checkpoint only at an episode end,
   // so that a resumed (extended) run continues exactly.
-  const int64_t every = s.config.get_int("eval.every");
-  if (every > 0 && s.agent_steps % every != 0) s.evaluate();
+  if (s.eval_every > 0 && s.agent_steps % s.eval_every != 0) s.evaluate();
   if (s.need_reset) s.save_checkpoint();
   s.save_final();
 }
