@@ -20,12 +20,4 @@ at::Tensor activate(const at::Tensor& x, Activation a) {
   return a == Activation::kSin ? at::sin(x) : at::relu(x);
 }
 
-void activate_(at::Tensor& x, Activation a) {
-  if (a == Activation::kSin) {
-    x.sin_();
-  } else {
-    x.relu_();
-  }
-}
-
 }  // namespace hlt

@@ -14,7 +14,5 @@ enum class Activation { kSin, kRelu };
 Activation parse_activation(const std::string& name);
 std::string activation_name(Activation a);
 at::Tensor activate(const at::Tensor& x, Activation a);
-// In place, for inference paths that own `x`.
-void activate_(at::Tensor& x, Activation a);
 
 }  // namespace hlt
