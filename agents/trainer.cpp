@@ -16,6 +16,7 @@
 #include "hlt/core/checkpoint.h"
 #include "hlt/core/runtime.h"
 #include "hlt/data/replay_buffer.h"
+#include "hlt/util/blas_kernel.h"
 #include "hlt/util/error.h"
 #include "hlt/util/files.h"
 #include "hlt/util/progress_bar.h"
@@ -42,6 +43,12 @@ at::Tensor to_tensor(const Eigen::VectorXd& v) {
 Eigen::VectorXd to_eigen(const at::Tensor& t) {
   const at::Tensor d = t.to(torch::kFloat64).contiguous();
   return Eigen::Map<const Eigen::VectorXd>(d.data_ptr<double>(), d.numel());
+}
+
+// The header of config.yaml: what the run's numbers depend on besides its settings. The same seed gives
+// the same numbers only with the same BLAS kernel.
+std::string run_notes() {
+  return "blas: " + blas_kernel().summary();
 }
 
 struct Stats {
@@ -392,7 +399,7 @@ std::unique_ptr<Trainer> Trainer::create(const Config& config, const std::string
   impl->config = config;
   impl->dir = run_dir;
   impl->build();
-  impl->config.save(impl->path(kConfigFile));
+  impl->config.save(impl->path(kConfigFile), run_notes());
   impl->log = std::make_unique<ScalarLogger>(impl->path(kLogFile));
   return std::unique_ptr<Trainer>(new Trainer(std::move(impl)));
 }
@@ -415,7 +422,15 @@ std::unique_ptr<Trainer> Trainer::resume(const std::string& run_dir, std::option
     // Killed before its first checkpoint: start over, keeping nothing the new run would not write again.
     ScalarLogger::truncate_after(log_path, -1);
   }
-  impl->config.save(cfg.string());
+  const std::string notes = run_notes();
+  const std::string old_config = read_file(cfg.string());
+  if (old_config.rfind("# " + notes + "\n", 0) != 0) {
+    fmt::print(stderr,
+               "warning: {}'s {} records another BLAS kernel or none; the resumed part's numbers may "
+               "differ in their last digits from an uninterrupted run's\n  now: {}\n",
+               run_dir, kConfigFile, notes);
+  }
+  impl->config.save(cfg.string(), notes);
   impl->log = std::make_unique<ScalarLogger>(log_path);
   return std::unique_ptr<Trainer>(new Trainer(std::move(impl)));
 }

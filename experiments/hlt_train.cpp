@@ -16,6 +16,7 @@
 
 #include "agents/train_config.h"
 #include "agents/trainer.h"
+#include "hlt/util/blas_kernel.h"
 #include "hlt/util/error.h"
 #include "hlt/util/files.h"
 #include "hlt/util/progress_bar.h"
@@ -110,6 +111,7 @@ int run(int argc, char** argv) {
   fmt::print("training {} on {} (seed {}, {} agent steps, frame skip {}) into {}\n",
              config.get_string("method"), config.get_string("env"), config.get_int("seed"),
              config.get_int("train.agent_steps"), config.get_int("train.frame_skip"), out);
+  fmt::print("blas: {}\n", blas_kernel().summary());
   trainer->run(progress);
   print_summary(out);
   return 0;

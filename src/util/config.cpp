@@ -365,8 +365,12 @@ std::string Config::to_yaml() const {
   return std::string(out.c_str()) + "\n";
 }
 
-void Config::save(const std::string& path) const {
-  write_file_atomic(path, to_yaml());
+void Config::save(const std::string& path, const std::string& header) const {
+  std::string comments;
+  std::stringstream lines(header);
+  for (std::string line; std::getline(lines, line);)
+    comments += "# " + line + "\n";
+  write_file_atomic(path, comments + to_yaml());
 }
 
 std::string Config::describe() const {

@@ -47,7 +47,9 @@ class Config {
 
   // Resolved values as nested YAML (every declared key, defaults included), and a written copy of it.
   std::string to_yaml() const;
-  void save(const std::string& path) const;
+  // Writes to_yaml() atomically; `header`, if given, goes first as '# ' comment lines (notes for the reader
+  // that are not settings, such as the BLAS kernel a run used).
+  void save(const std::string& path, const std::string& header = "") const;
   // One line per key: name, type, default, allowed values, documentation (for --help output).
   std::string describe() const;
   std::vector<std::string> keys() const;
