@@ -11,7 +11,7 @@ ModelLearner::ModelLearner(DynamicsModel dynamics, RewardModel reward, const Mod
   std::vector<torch::Tensor> params = dynamics_->parameters();
   for (auto& p : reward_->parameters())
     params.push_back(p);
-  optimizer_ = std::make_unique<torch::optim::Adam>(params, torch::optim::AdamOptions(options.lr));
+  optimizer_ = std::make_unique<FlatAdam>(params, FlatAdamOptions{options.lr});
 }
 
 ModelLosses ModelLearner::update(const Batch& b) {
@@ -37,11 +37,11 @@ void ModelLearner::load(CheckpointReader& r) {
 }
 
 void ModelLearner::save_training_state(CheckpointWriter& w) const {
-  w.add_optimizer("models", *optimizer_);
+  optimizer_->save(w, "models");
 }
 
 void ModelLearner::load_training_state(CheckpointReader& r) {
-  r.load_optimizer("models", *optimizer_);
+  optimizer_->load(r, "models");
 }
 
 }  // namespace hlt

@@ -4,10 +4,9 @@
 
 #include <memory>
 
-#include <torch/optim/adam.h>
-
 #include "hlt/data/replay_buffer.h"
 #include "hlt/nn/dynamics_model.h"
+#include "hlt/nn/flat_adam.h"
 #include "hlt/nn/reward_model.h"
 
 namespace hlt {
@@ -41,7 +40,7 @@ class ModelLearner {
   ModelLearnerOptions options_;
   DynamicsModel dynamics_;
   RewardModel reward_;
-  std::unique_ptr<torch::optim::Adam> optimizer_;
+  std::unique_ptr<FlatAdam> optimizer_;
 };
 
 }  // namespace hlt

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include <ATen/CPUGeneratorImpl.h>
 #include <torch/torch.h>
 
 #include "hlt/core/checkpoint.h"
@@ -13,30 +14,21 @@ Sac::Sac(GaussianPolicy policy, int64_t state_dim, int64_t action_dim, const Sac
     : options_(options), policy_(std::move(policy)) {
   target_entropy_ =
       std::isnan(options.target_entropy) ? -static_cast<double>(action_dim) : options.target_entropy;
-  const QNetworkOptions qo{state_dim, action_dim, options.q_hidden};
-  q1_ = QNetwork(qo);
-  q2_ = QNetwork(qo);
-  q1_target_ = QNetwork(qo);
-  q2_target_ = QNetwork(qo);
-  torch::NoGradGuard no_grad;
-  for (auto* q : {&q1_, &q2_}) {
-    for (auto& p : (*q)->parameters())
-      q_params_.push_back(p);
-  }
-  for (auto* q : {&q1_target_, &q2_target_}) {
-    for (auto& p : (*q)->parameters()) {
-      p.requires_grad_(false);
-      target_params_.push_back(p);
-    }
-  }
-  for (size_t i = 0; i < q_params_.size(); ++i)
-    target_params_[i].copy_(q_params_[i]);
+  const TwinQNetworkOptions qo{state_dim, action_dim, options.q_hidden};
+  critics_ = TwinQNetwork(qo);
+  critics_target_ = TwinQNetwork(qo);
   log_alpha_ = torch::full({1}, std::log(options.initial_alpha)).requires_grad_(true);
-  q_opt_ = std::make_unique<torch::optim::Adam>(q_params_, torch::optim::AdamOptions(options.q_lr));
-  policy_opt_ = std::make_unique<torch::optim::Adam>(policy_->parameters(),
-                                                     torch::optim::AdamOptions(options.policy_lr));
-  alpha_opt_ = std::make_unique<torch::optim::Adam>(std::vector<torch::Tensor>{log_alpha_},
-                                                    torch::optim::AdamOptions(options.alpha_lr));
+  q_opt_ = std::make_unique<FlatAdam>(critics_->parameters(), FlatAdamOptions{options.q_lr});
+  policy_opt_ = std::make_unique<FlatAdam>(policy_->parameters(), FlatAdamOptions{options.policy_lr});
+  alpha_opt_ =
+      std::make_unique<FlatAdam>(std::vector<torch::Tensor>{log_alpha_}, FlatAdamOptions{options.alpha_lr});
+  generator_ = at::make_generator<at::CPUGeneratorImpl>(options.seed);
+  // The target critics start as copies and are only ever averaged, never trained.
+  target_flat_ = flatten_parameters(critics_target_->parameters());
+  torch::NoGradGuard no_grad;
+  target_flat_.copy_(q_opt_->flat_parameters());
+  for (auto& p : critics_target_->parameters())
+    p.requires_grad_(false);
 }
 
 double Sac::alpha() const {
@@ -51,50 +43,45 @@ SacLosses Sac::update(const Batch& b) {
   torch::Tensor target;
   {
     torch::NoGradGuard no_grad;
-    PolicySample next = policy_->rsample(b.next_states);
-    torch::Tensor q_next = torch::min(q1_target_->forward(b.next_states, next.action),
-                                      q2_target_->forward(b.next_states, next.action)) -
-                           alpha * next.log_prob;
+    PolicySample next = policy_->rsample(b.next_states, generator_);
+    torch::Tensor q_next = critics_target_->min_q(b.next_states, next.action) - alpha * next.log_prob;
     target = b.rewards + options_.gamma * (1.0 - b.dones) * q_next;
   }
-  torch::Tensor critic_loss = (q1_->forward(b.states, b.actions) - target).square().mean() +
-                              (q2_->forward(b.states, b.actions) - target).square().mean();
+  // The sum of the two critics' mean squared TD errors.
+  torch::Tensor critic_loss = (critics_->forward(b.states, b.actions) - target).square().mean() * 2.0;
   q_opt_->zero_grad();
   critic_loss.backward();
   q_opt_->step();
 
   // Policy: minimise E[alpha log pi(a|s) - min Q(s, a)] with a reparameterised; the critics' own weight
   // gradients are not needed here, so they are switched off for this pass.
-  for (auto& p : q_params_)
+  const auto critic_params = critics_->parameters();
+  for (auto& p : critic_params)
     p.requires_grad_(false);
-  PolicySample fresh = policy_->rsample(b.states);
-  torch::Tensor q_new =
-      torch::min(q1_->forward(b.states, fresh.action), q2_->forward(b.states, fresh.action));
-  torch::Tensor actor_loss = (alpha * fresh.log_prob - q_new).mean();
+  PolicySample fresh = policy_->rsample(b.states, generator_);
+  torch::Tensor actor_loss = (alpha * fresh.log_prob - critics_->min_q(b.states, fresh.action)).mean();
   policy_opt_->zero_grad();
   actor_loss.backward();
   policy_opt_->step();
-  for (auto& p : q_params_)
+  for (auto& p : critic_params)
     p.requires_grad_(true);
 
-  // Temperature: minimise E[-log_alpha (log pi + target_entropy)].
-  torch::Tensor log_prob = fresh.log_prob.detach();
-  torch::Tensor alpha_loss = -(log_alpha_ * (log_prob + target_entropy_)).mean();
-  alpha_opt_->zero_grad();
-  alpha_loss.backward();
+  // Temperature: minimise E[-log_alpha (log pi + target_entropy)], whose gradient in log_alpha is
+  // -(E[log pi] + target_entropy): written directly instead of a backward pass through one product.
+  const double mean_log_prob = fresh.log_prob.detach().mean().item<double>();
+  alpha_opt_->flat_gradients().fill_(-(mean_log_prob + target_entropy_));
   alpha_opt_->step();
 
-  // Polyak averaging of the target critics, one fused op per parameter.
+  // Polyak averaging of the target critics: one pass over the flat buffers.
   {
     torch::NoGradGuard no_grad;
-    for (size_t i = 0; i < q_params_.size(); ++i)
-      target_params_[i].lerp_(q_params_[i], options_.tau);
+    target_flat_.lerp_(q_opt_->flat_parameters(), options_.tau);
   }
 
   out.critic = 0.5 * critic_loss.item<double>();
   out.actor = actor_loss.item<double>();
   out.alpha = Sac::alpha();
-  out.entropy = -log_prob.mean().item<double>();
+  out.entropy = -mean_log_prob;
   return out;
 }
 
@@ -109,30 +96,28 @@ void Sac::load(CheckpointReader& r) {
 }
 
 void Sac::save_training_state(CheckpointWriter& w) const {
-  w.add_module("q1", *q1_);
-  w.add_module("q2", *q2_);
-  w.add_module("q1_target", *q1_target_);
-  w.add_module("q2_target", *q2_target_);
+  w.add_module("critics", *critics_);
+  w.add_module("critics_target", *critics_target_);
   w.add_tensor("log_alpha", log_alpha_.detach());
-  w.add_optimizer("q", *q_opt_);
-  w.add_optimizer("policy", *policy_opt_);
-  w.add_optimizer("alpha", *alpha_opt_);
+  w.add_tensor("sac_rng", generator_.get_state());
+  q_opt_->save(w, "q");
+  policy_opt_->save(w, "policy");
+  alpha_opt_->save(w, "alpha");
 }
 
 void Sac::load_training_state(CheckpointReader& r) {
-  r.load_module("q1", *q1_);
-  r.load_module("q2", *q2_);
-  r.load_module("q1_target", *q1_target_);
-  r.load_module("q2_target", *q2_target_);
+  r.load_module("critics", *critics_);
+  r.load_module("critics_target", *critics_target_);
   torch::Tensor la = r.tensor("log_alpha");
   check(la.sizes() == log_alpha_.sizes(), "checkpoint {}: log_alpha has the wrong shape", r.path());
   {
     torch::NoGradGuard no_grad;
     log_alpha_.copy_(la);
   }
-  r.load_optimizer("q", *q_opt_);
-  r.load_optimizer("policy", *policy_opt_);
-  r.load_optimizer("alpha", *alpha_opt_);
+  generator_.set_state(r.tensor("sac_rng"));
+  q_opt_->load(r, "q");
+  policy_opt_->load(r, "policy");
+  alpha_opt_->load(r, "alpha");
 }
 
 }  // namespace hlt

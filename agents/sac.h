@@ -1,17 +1,19 @@
 // hlt::Sac: Soft Actor-Critic (Haarnoja et al. 2018, the version with twin soft-Q critics, Polyak-averaged
-// target critics and automatic entropy tuning). It owns the critics, the entropy temperature and all three
-// optimizers; the policy is shared with the controllers that act with it.
+// target critics and automatic entropy tuning). It owns the critics (one batched TwinQNetwork and its
+// target), the entropy temperature and all three optimizers; the policy is shared with the controllers that
+// act with it. The critics' parameters and their target's each live in one flat buffer, so the optimizer
+// step and the Polyak average are one pass each.
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <vector>
 
-#include <torch/optim/adam.h>
-
 #include "hlt/data/replay_buffer.h"
+#include "hlt/nn/flat_adam.h"
 #include "hlt/nn/gaussian_policy.h"
-#include "hlt/nn/q_network.h"
+#include "hlt/nn/twin_q_network.h"
 
 namespace hlt {
 
@@ -28,6 +30,9 @@ struct SacOptions {
   double initial_alpha = 1.0;
   // Entropy target; NaN means -action_dim (the usual heuristic).
   double target_entropy = std::numeric_limits<double>::quiet_NaN();
+  // Seed of SAC's own generator (the policy samples of its updates), so that its updates draw the same
+  // numbers whatever else runs in the process, concurrently or not.
+  uint64_t seed = 0;
 };
 
 struct SacLosses {
@@ -58,10 +63,11 @@ class Sac {
   SacOptions options_;
   double target_entropy_;
   GaussianPolicy policy_;
-  QNetwork q1_{nullptr}, q2_{nullptr}, q1_target_{nullptr}, q2_target_{nullptr};
+  TwinQNetwork critics_{nullptr}, critics_target_{nullptr};
   torch::Tensor log_alpha_;
-  std::unique_ptr<torch::optim::Adam> q_opt_, policy_opt_, alpha_opt_;
-  std::vector<torch::Tensor> q_params_, target_params_;
+  std::unique_ptr<FlatAdam> q_opt_, policy_opt_, alpha_opt_;
+  torch::Tensor target_flat_;  // the target critics' parameters, in the critics' flat order
+  at::Generator generator_;
 };
 
 }  // namespace hlt

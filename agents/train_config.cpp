@@ -21,6 +21,10 @@ Config make_train_config() {
       .add_int("train.update_after", 128, "transitions stored before updates start", 1, big)
       .add_int("train.sac_updates", 1, "SAC updates per agent step", 0, 100)
       .add_int("train.model_updates", 5, "dynamics + reward model updates per agent step", 0, 100)
+      .add_int("train.threads", 1,
+               "threads for an agent step's learner updates: 2 runs the SAC update and the model updates "
+               "concurrently (the same numbers as 1)",
+               1, 2)
       .add_int("train.replay_capacity", 1000000, "replay buffer capacity (transitions)", 1, 100000000)
       .add_int("eval.every", 1000, "agent steps between evaluations (0: never)", 0, big)
       .add_int("eval.episodes", 5, "episodes per evaluation", 1, 1000)
@@ -53,7 +57,8 @@ Config make_train_config() {
                   0.999)
       .add_bool("deterministic.clamp_adjoint", false, "clamp rho to [-1, 1] before use (the authors' choice)")
       .add_double("deterministic.exploration_decay", 0.999,
-                  "exploration noise std = decay^t, t counting agent steps (environment interactions)", 0.0, 1.0);
+                  "exploration noise std = decay^t, t counting agent steps (environment interactions)", 0.0,
+                  1.0);
   return c;
 }
 

@@ -22,6 +22,7 @@
 #include "hlt/util/progress_bar.h"
 #include "hlt/util/random.h"
 #include "hlt/util/scalar_logger.h"
+#include "hlt/util/worker_thread.h"
 
 namespace hlt {
 namespace fs = std::filesystem;
@@ -34,7 +35,7 @@ double seconds_since(Clock::time_point t0) {
 }
 
 // Seed streams derived from the run seed (see derive_seed).
-enum Stream : uint64_t { kReplay = 1, kTrainEpisode = 2, kEvalEpisode = 3 };
+enum Stream : uint64_t { kReplay = 1, kTrainEpisode = 2, kEvalEpisode = 3, kSacNoise = 4 };
 
 at::Tensor to_tensor(const Eigen::VectorXd& v) {
   return torch::from_blob(const_cast<double*>(v.data()), {v.size()}, torch::kFloat64).to(torch::kFloat32);
@@ -76,6 +77,7 @@ struct Trainer::Impl {
   std::unique_ptr<Controller> controller;
   std::vector<std::pair<std::string, std::unique_ptr<Controller>>> evaluators;  // label, controller
   std::unique_ptr<ScalarLogger> log;
+  std::unique_ptr<WorkerThread> worker;  // train.threads = 2: runs the SAC updates beside the model updates
 
   // Per-step settings, read from the config once.
   int64_t update_after = 0, batch_size = 0, sac_updates = 0, model_updates = 0, eval_every = 0;
@@ -127,6 +129,7 @@ struct Trainer::Impl {
       so.q_lr = so.policy_lr = so.alpha_lr = config.get_double("sac.lr");
       so.q_hidden = config.get_int_list("sac.q_hidden");
       so.initial_alpha = config.get_double("sac.initial_alpha");
+      so.seed = derive_seed(seed, kSacNoise);
       sac = std::make_unique<Sac>(models.policy, n, m, so);
     }
     if (method->trains_models) {
@@ -153,6 +156,7 @@ struct Trainer::Impl {
     sac_updates = config.get_int("train.sac_updates");
     model_updates = config.get_int("train.model_updates");
     eval_every = config.get_int("eval.every");
+    if (config.get_int("train.threads") > 1 && sac && learner) worker = std::make_unique<WorkerThread>();
   }
 
   at::Tensor act(Controller& c, const Eigen::VectorXd& state) {
@@ -217,23 +221,44 @@ struct Trainer::Impl {
     if (res.done()) end_episode();
   }
 
+  // An agent step's learner updates. Every batch is drawn first (SAC's, then the models'), and SAC's policy
+  // samples come from its own generator; the two learners share no parameters, so running them
+  // concurrently (train.threads = 2) computes exactly what running them one after the other does.
   void update() {
     if (buffer->size() < update_after) return;
-    if (sac) {
-      for (int64_t i = 0; i < sac_updates; ++i) {
-        const SacLosses l = sac->update(buffer->sample(batch_size));
+    std::vector<Batch> sac_batches, model_batches;
+    for (int64_t i = 0; sac && i < sac_updates; ++i)
+      sac_batches.push_back(buffer->sample(batch_size));
+    for (int64_t i = 0; learner && i < model_updates; ++i)
+      model_batches.push_back(buffer->sample(batch_size));
+    auto update_sac = [&] {
+      for (const Batch& b : sac_batches) {
+        const SacLosses l = sac->update(b);
         critic_loss.add(l.critic);
         actor_loss.add(l.actor);
         alpha.add(l.alpha);
         entropy.add(l.entropy);
       }
-    }
-    if (learner) {
-      for (int64_t i = 0; i < model_updates; ++i) {
-        const ModelLosses l = learner->update(buffer->sample(batch_size));
+    };
+    auto update_models = [&] {
+      for (const Batch& b : model_batches) {
+        const ModelLosses l = learner->update(b);
         dyn_loss.add(l.dynamics);
         rew_loss.add(l.reward);
       }
+    };
+    if (worker) {
+      worker->start(update_sac);
+      try {
+        update_models();
+      } catch (...) {
+        worker->wait();
+        throw;
+      }
+      worker->wait();
+    } else {
+      update_sac();
+      update_models();
     }
   }
 

@@ -78,8 +78,8 @@ void stochastic_floor(benchmark::State& st, bool with_policy) {
   torch::InferenceMode guard;
   const auto K = s.K, n = s.n, m = s.m;
   auto x = torch::randn({K, n}), xa = torch::randn({K, n + m});
-  auto h = torch::empty({K, 128}), u = torch::empty({K, m}), hd = torch::empty({K, 200}), d = torch::empty({K, n}),
-       hr = torch::empty({K, 200}), r = torch::empty({K, 1});
+  auto h = torch::empty({K, 128}), u = torch::empty({K, m}), hd = torch::empty({K, 200}),
+       d = torch::empty({K, n}), hr = torch::empty({K, 200}), r = torch::empty({K, 1});
   auto pw1 = torch::randn({n, 128}), pw2 = torch::randn({128, m}), dw1 = torch::randn({n + m, 200}),
        dw2 = torch::randn({200, n}), rw1 = torch::randn({n + m, 200}), rw2 = torch::randn({200, 200}),
        rw3 = torch::randn({200, 1});
@@ -99,8 +99,12 @@ void stochastic_floor(benchmark::State& st, bool with_policy) {
   }
 }
 
-void StochasticHybridFloor(benchmark::State& st) { stochastic_floor(st, true); }
-void MPPIFloor(benchmark::State& st) { stochastic_floor(st, false); }
+void StochasticHybridFloor(benchmark::State& st) {
+  stochastic_floor(st, true);
+}
+void MPPIFloor(benchmark::State& st) {
+  stochastic_floor(st, false);
+}
 
 // The deterministic planner's products: the batch-1 rollout (policy two heads at step 0, mean head after;
 // dynamics), the Jacobian pass forward at batches H n (dynamics), H m (policy mean) and H (reward), and the
@@ -178,6 +182,98 @@ void ModelUpdate(benchmark::State& st) {
 
 BENCHMARK(SacUpdate)->ArgNames({"n", "m"})->Args({5, 1})->Args({26, 6})->Unit(benchmark::kMillisecond);
 BENCHMARK(ModelUpdate)->ArgNames({"n", "m"})->Args({5, 1})->Args({26, 6})->Unit(benchmark::kMillisecond);
+
+// The matrix products of one agent step at batch 128 (the paper's sizes; critics 2 x 256, policy 128, models
+// 200 and 200 x 200): the stochastic planner's call (as StochasticHybridFloor, K = 20, H = 5), one SAC update
+// and five model updates. Each layer's forward is one product; each backward product a learner cannot avoid
+// is one more (weight gradients of the trained layers, input gradients where they flow on).
+struct MlpShapes {
+  std::vector<at::Tensor> w, h, dw, dh;  // weights [in, out], activations, weight and input gradients
+  MlpShapes(int64_t batch, std::vector<int64_t> widths) {
+    for (size_t i = 0; i + 1 < widths.size(); ++i) {
+      w.push_back(torch::randn({widths[i], widths[i + 1]}));
+      dw.push_back(torch::empty({widths[i], widths[i + 1]}));
+      h.push_back(torch::empty({batch, widths[i + 1]}));
+      dh.push_back(torch::empty({batch, widths[i]}));
+    }
+  }
+  void forward(const at::Tensor& x) {
+    for (size_t i = 0; i < w.size(); ++i)
+      at::mm_out(h[i], i == 0 ? x : h[i - 1], w[i]);
+  }
+  // Backward from the output's gradient `g` (the shape of the last activation).
+  void backward(const at::Tensor& x, bool weight_grads, bool input_grad) {
+    for (size_t i = w.size(); i-- > 0;) {
+      const at::Tensor& g = i + 1 == w.size() ? h.back() : dh[i + 1];
+      if (weight_grads) at::mm_out(dw[i], (i == 0 ? x : h[i - 1]).t(), g);
+      if (i > 0 || input_grad) at::mm_out(dh[i], g, w[i].t());
+    }
+  }
+};
+
+void agent_step_floor(benchmark::State& st, bool plan, bool sac, int model_steps) {
+  set_torch_threads(1);
+  torch::manual_seed(0);
+  torch::InferenceMode guard;
+  const int64_t n = st.range(0), m = st.range(1), B = 128;
+  const at::Tensor s = torch::randn({B, n}), sa = torch::randn({B, n + m});
+  MlpShapes critic(B, {n + m, 256, 256, 1}), policy(B, {n, 128, m}), dynamics(B, {n + m, 200, n}),
+      reward(B, {n + m, 200, 200, 1});
+  // The planning call's products (the same as StochasticHybridFloor at K = 20, H = 5).
+  const int64_t K = 20, H = 5;
+  MlpShapes p_policy(K, {n, 128, m}), p_dynamics(K, {n + m, 200, n}), p_reward(K, {n + m, 200, 200, 1});
+  const at::Tensor xk = torch::randn({K, n}), xak = torch::randn({K, n + m});
+  for (auto _ : st) {
+    for (int64_t t = 0; plan && t < H; ++t) {
+      p_policy.forward(xk);
+      p_policy.forward(xk);
+      p_dynamics.forward(xak);
+      p_reward.forward(xak);
+    }
+    // SAC: the target (policy at s' with both heads, two target critics), the critics' step (two forwards,
+    // two backwards with weight gradients), the policy's step (both heads, two critics forward and backward
+    // to the action, the heads' backward with weight gradients).
+    for (int head = 0; sac && head < 2; ++head)
+      policy.forward(s);
+    for (int q = 0; sac && q < 2; ++q)
+      critic.forward(sa);
+    for (int q = 0; sac && q < 2; ++q) {
+      critic.forward(sa);
+      critic.backward(sa, true, false);
+    }
+    for (int head = 0; sac && head < 2; ++head)
+      policy.forward(s);
+    for (int q = 0; sac && q < 2; ++q) {
+      critic.forward(sa);
+      critic.backward(sa, false, true);
+    }
+    for (int head = 0; sac && head < 2; ++head)
+      policy.backward(s, true, false);
+    // Five model steps: dynamics forward and backward, reward at (s, a) forward and backward and at (s', a')
+    // forward for its TD target.
+    for (int k = 0; k < model_steps; ++k) {
+      dynamics.forward(sa);
+      dynamics.backward(sa, true, false);
+      reward.forward(sa);
+      reward.forward(sa);
+      reward.backward(sa, true, false);
+    }
+    benchmark::DoNotOptimize(reward.dw[0].data_ptr());
+  }
+}
+void AgentStepFloor(benchmark::State& st) {
+  agent_step_floor(st, true, true, 5);
+}
+// Its parts: one SAC update's products, one model update's.
+void SacUpdateFloor(benchmark::State& st) {
+  agent_step_floor(st, false, true, 0);
+}
+void ModelUpdateFloor(benchmark::State& st) {
+  agent_step_floor(st, false, false, 1);
+}
+BENCHMARK(SacUpdateFloor)->ArgNames({"n", "m"})->Args({5, 1})->Args({26, 6})->Unit(benchmark::kMillisecond);
+BENCHMARK(ModelUpdateFloor)->ArgNames({"n", "m"})->Args({5, 1})->Args({26, 6})->Unit(benchmark::kMillisecond);
+BENCHMARK(AgentStepFloor)->ArgNames({"n", "m"})->Args({5, 1})->Args({26, 6})->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace hlt

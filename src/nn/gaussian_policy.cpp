@@ -68,9 +68,9 @@ torch::Tensor GaussianPolicyImpl::squashed_log_prob(const torch::Tensor& u, cons
   return (gaussian - correction).sum(-1, /*keepdim=*/true);
 }
 
-PolicySample GaussianPolicyImpl::rsample(const torch::Tensor& state) {
+PolicySample GaussianPolicyImpl::rsample(const torch::Tensor& state, c10::optional<at::Generator> generator) {
   auto [mean, log_std] = forward(state);
-  const torch::Tensor u = mean + torch::exp(log_std) * torch::randn_like(mean);
+  const torch::Tensor u = mean + torch::exp(log_std) * at::randn(mean.sizes(), generator, mean.options());
   const torch::Tensor a = torch::tanh(u);
   return {a, squashed_log_prob(u, a, mean, log_std), u};
 }

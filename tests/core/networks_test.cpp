@@ -7,8 +7,8 @@
 
 #include "hlt/nn/dynamics_model.h"
 #include "hlt/nn/gaussian_policy.h"
-#include "hlt/nn/q_network.h"
 #include "hlt/nn/reward_model.h"
+#include "hlt/nn/twin_q_network.h"
 #include "hlt/util/error.h"
 #include "support/gradient_check.h"
 
@@ -149,13 +149,35 @@ TEST(GaussianPolicy, LogStdIsClamped) {
   EXPECT_DOUBLE_EQ(policy->forward(torch::ones({1, 1})).second.item<double>(), 2.0);
 }
 
+TEST(TwinQNetwork, EachCriticIsItsOwnReluMlp) {
+  torch::manual_seed(2);
+  const int n = 3, m = 2, B = 5;
+  TwinQNetwork q(TwinQNetworkOptions{n, m, {7, 4}});
+  ASSERT_EQ(q->weights.size(), 3u);
+  EXPECT_EQ(q->weights[0].sizes(), (std::vector<int64_t>{2, n + m, 7}));
+  EXPECT_EQ(q->biases[2].sizes(), (std::vector<int64_t>{2, 1, 1}));
+  // The two critics are initialised independently.
+  EXPECT_GT((q->weights[1][0] - q->weights[1][1]).abs().max().item<double>(), 1e-3);
+  auto s = torch::randn({B, n}), a = torch::randn({B, m});
+  const auto out = q->forward(s, a);
+  ASSERT_EQ(out.sizes(), (std::vector<int64_t>{2, B, 1}));
+  for (int i = 0; i < 2; ++i) {
+    auto x = torch::cat({s, a}, 1);
+    x = torch::relu(x.mm(q->weights[0][i]) + q->biases[0][i]);
+    x = torch::relu(x.mm(q->weights[1][i]) + q->biases[1][i]);
+    x = x.mm(q->weights[2][i]) + q->biases[2][i];
+    EXPECT_TRUE(torch::allclose(out[i], x, 1e-5, 1e-6)) << i;
+  }
+  EXPECT_TRUE(torch::equal(q->min_q(s, a), torch::min(out[0], out[1])));
+}
+
 TEST(Gradients, EveryModelMatchesFiniteDifferences) {
   torch::manual_seed(4);
   const int n = 3, m = 2;
   DynamicsModel dyn(DynamicsModelOptions{n, m, 12, Activation::kSin});
   RewardModel rew(RewardModelOptions{n, m, 10});
   GaussianPolicy pol(GaussianPolicyOptions{n, m, {9, 7}, Activation::kSin});
-  QNetwork q(QNetworkOptions{n, m, {11, 6}});
+  TwinQNetwork q(TwinQNetworkOptions{n, m, {11, 6}});
   for (torch::nn::Module* mod :
        std::initializer_list<torch::nn::Module*>{dyn.get(), rew.get(), pol.get(), q.get()}) {
     mod->to(torch::kFloat64);

@@ -125,6 +125,20 @@ std::vector<std::string> comparable_rows(const std::string& path) {
   return rows;
 }
 
+TEST(TrainCli, ParallelUpdatesGiveTheSameNumbers) {
+  const std::string args = kSmall + " --method hybrid-stochastic --steps 200 eval.every=100";
+  const std::string one = fresh_dir("threads1"), two = fresh_dir("threads2");
+  Result r = run(kTrain + args + " train.threads=1 --out " + one);
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run(kTrain + args + " train.threads=2 --out " + two);
+  ASSERT_EQ(r.code, 0) << r.output;
+  const auto rows = comparable_rows(one + "/scalars.csv");
+  ASSERT_GT(rows.size(), 20u);
+  EXPECT_EQ(comparable_rows(two + "/scalars.csv"), rows);
+  // The run records the BLAS kernel it used, first in its config.
+  EXPECT_EQ(read_file(one + "/config.yaml").rfind("# blas: ", 0), 0u);
+}
+
 TEST(TrainCli, KilledRunResumesToTheSameLog) {
   const std::string args =
       kSmall + " --method hybrid-stochastic --steps 600 checkpoint.every=100 eval.every=100";

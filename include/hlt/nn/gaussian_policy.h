@@ -39,8 +39,9 @@ class GaussianPolicyImpl : public torch::nn::Module {
   std::pair<torch::Tensor, torch::Tensor> forward(const torch::Tensor& state);
   // tanh(mu(s)): the deterministic action.
   torch::Tensor mean_action(const torch::Tensor& state);
-  // A reparameterised sample (gradients flow to the parameters) and its log-probability.
-  PolicySample rsample(const torch::Tensor& state);
+  // A reparameterised sample (gradients flow to the parameters) and its log-probability; the noise comes
+  // from `generator` (LibTorch's default generator if none).
+  PolicySample rsample(const torch::Tensor& state, c10::optional<at::Generator> generator = c10::nullopt);
   // A sample without gradients.
   PolicySample sample(const torch::Tensor& state);
   // log pi(action | state) for given actions in (-1, 1) (clamped to +-(1 - 1e-6) before atanh), [B, 1].

@@ -2,7 +2,7 @@
 //
 // Debian 12's OpenBLAS 0.3.21 picks its kernels from the CPU model in its load-time constructor; on CPUs it
 // does not know (Intel family 6 model 207, for one) it falls back to its SSE3 `Prescott` kernels, 3-6x
-// slower than the AVX-512 ones. Every hlt executable links `src/preinit/blas_preinit.cpp`, an ELF
+// slower than the AVX-512 ones. Every hlt executable links `src/preinit/process_preinit.cpp`, an ELF
 // `.preinit_array` entry that runs before any shared library's constructor and, where OPENBLAS_CORETYPE is
 // unset, re-executes the process once with it set from the CPU's features (choose_openblas_core). A value
 // set by the user or the machine is never changed.
