@@ -17,6 +17,7 @@
 #include "hlt/core/runtime.h"
 #include "hlt/data/replay_buffer.h"
 #include "hlt/util/blas_kernel.h"
+#include "hlt/util/directory_lock.h"
 #include "hlt/util/error.h"
 #include "hlt/util/files.h"
 #include "hlt/util/progress_bar.h"
@@ -67,6 +68,7 @@ struct Stats {
 struct Trainer::Impl {
   Config config;
   std::string dir;
+  std::unique_ptr<DirectoryLock> lock;  // held for as long as this process may write the run
   const MethodSpec* method = nullptr;
   uint64_t seed = 0;
   std::unique_ptr<FrameSkip> env, eval_env;
@@ -234,6 +236,7 @@ struct Trainer::Impl {
     auto update_sac = [&] {
       for (const Batch& b : sac_batches) {
         const SacLosses l = sac->update(b);
+        check_finite("SAC", {l.critic, l.actor, l.alpha});
         critic_loss.add(l.critic);
         actor_loss.add(l.actor);
         alpha.add(l.alpha);
@@ -243,6 +246,7 @@ struct Trainer::Impl {
     auto update_models = [&] {
       for (const Batch& b : model_batches) {
         const ModelLosses l = learner->update(b);
+        check_finite("model", {l.dynamics, l.reward});
         dyn_loss.add(l.dynamics);
         rew_loss.add(l.reward);
       }
@@ -262,6 +266,30 @@ struct Trainer::Impl {
     }
   }
 
+  // A diverged run stops with an error: its last checkpoint (written while every number was finite) stays,
+  // and no final.pt of non-finite weights is written.
+  void check_finite(const char* what, std::initializer_list<double> losses) const {
+    for (double x : losses)
+      check(std::isfinite(x),
+            "training diverged at agent step {}: a {} loss is not finite (lower the learning rates?); {} "
+            "keeps the last finite checkpoint, no {} is written",
+            agent_steps, what, dir, kFinalFile);
+  }
+
+  bool networks_finite() const {
+    std::vector<torch::Tensor> params;
+    if (models.policy) params = models.policy->parameters();
+    if (models.dynamics) {
+      for (const auto& p : models.dynamics->parameters())
+        params.push_back(p);
+      for (const auto& p : models.reward->parameters())
+        params.push_back(p);
+    }
+    for (const auto& p : params)
+      if (!torch::isfinite(p).all().item<bool>()) return false;
+    return true;
+  }
+
   void log_if(const std::string& tag, const Stats& s) {
     if (s.count) log->log(env_steps, tag, s.mean());
   }
@@ -276,8 +304,8 @@ struct Trainer::Impl {
     log->log(env_steps, "train/episode_length", static_cast<double>(ep_env_steps));
     log->log(env_steps, "train/agent_steps", static_cast<double>(agent_steps));
     log->log(env_steps, "train/episodes", static_cast<double>(episodes));
-    log->log(env_steps, "train/fallbacks",
-             static_cast<double>(controller->diagnostics().fallbacks - ep_fallbacks_start));
+    const int64_t fallbacks = controller->diagnostics().fallbacks - ep_fallbacks_start;
+    log->log(env_steps, "train/fallbacks", static_cast<double>(fallbacks));
     log_if("train/mode_insertion_gradient", ep_mig);
     log_if("loss/critic", critic_loss);
     log_if("loss/actor", actor_loss);
@@ -289,6 +317,10 @@ struct Trainer::Impl {
     log->log(env_steps, "time/agent_step_ms", 1e3 * seconds / ep_agent_steps);
     log->log(env_steps, "time/act_ms", 1e3 * ep_act_seconds / ep_agent_steps);
     log->log(env_steps, "time/update_ms", 1e3 * ep_update_seconds / ep_agent_steps);
+    check(ep_agent_steps < 10 || fallbacks < ep_agent_steps,
+          "training diverged at agent step {}: every action of episode {} was non-finite and replaced by the "
+          "fallback; {} keeps the last finite checkpoint, no {} is written",
+          agent_steps, episodes, dir, kFinalFile);
     if (agent_steps >= next_checkpoint) {
       save_checkpoint();
       const int64_t every = config.get_int("checkpoint.every");
@@ -354,6 +386,11 @@ struct Trainer::Impl {
 
   // Everything a resumed run needs; written only at episode ends, where no transition is pending.
   void save_checkpoint() {
+    check(
+        networks_finite(),
+        "training diverged at agent step {}: the networks hold non-finite weights; {} keeps the last finite "
+        "checkpoint, no {} is written",
+        agent_steps, dir, kFinalFile);
     CheckpointWriter w;
     add_networks(w);
     w.add_tensor("torch_rng", at::detail::getDefaultCPUGenerator().get_state());
@@ -365,6 +402,8 @@ struct Trainer::Impl {
 
   // The networks at the end of the run (which may end mid-episode), for rollouts and evaluation.
   void save_final() {
+    check(networks_finite(), "training diverged: the networks hold non-finite weights; {} is not written",
+          kFinalFile);
     CheckpointWriter w;
     add_networks(w);
     w.save(path(kFinalFile));
@@ -411,16 +450,22 @@ const Config& Trainer::config() const {
 const std::string& Trainer::run_dir() const {
   return impl_->dir;
 }
+Trainer::Summary Trainer::summary() const {
+  return {impl_->agent_steps, impl_->env_steps, impl_->last_eval, impl_->last_return};
+}
 
 std::unique_ptr<Trainer> Trainer::create(const Config& config, const std::string& run_dir) {
   ensure_writable_directory(run_dir);
-  for (const char* f : {kConfigFile, kLogFile, kCheckpointFile}) {
+  auto lock = std::make_unique<DirectoryLock>(run_dir);
+  for (const char* f : {kConfigFile, kLogFile, kCheckpointFile, kFinalFile}) {
     check(!fs::exists(fs::path(run_dir) / f),
           "{} already holds a run ({} exists); resume it with --resume {} or "
           "choose another --out",
           run_dir, f, run_dir);
   }
+  remove_stale_temporaries(run_dir);
   auto impl = std::make_unique<Impl>();
+  impl->lock = std::move(lock);
   impl->config = config;
   impl->dir = run_dir;
   impl->build();
@@ -434,6 +479,8 @@ std::unique_ptr<Trainer> Trainer::resume(const std::string& run_dir, std::option
   check(fs::is_directory(run_dir), "--resume {}: no such directory", run_dir);
   check(fs::exists(cfg), "--resume {}: not a run directory ({} is missing)", run_dir, kConfigFile);
   auto impl = std::make_unique<Impl>();
+  impl->lock = std::make_unique<DirectoryLock>(run_dir);
+  remove_stale_temporaries(run_dir);
   impl->dir = run_dir;
   impl->config = make_train_config();
   impl->config.load_file(cfg.string());
@@ -442,10 +489,28 @@ std::unique_ptr<Trainer> Trainer::resume(const std::string& run_dir, std::option
   const std::string log_path = impl->path(kLogFile);
   if (fs::exists(impl->path(kCheckpointFile))) {
     impl->load_checkpoint();
+    check(!agent_steps || *agent_steps >= impl->agent_steps,
+          "--resume {} --steps {}: the run has trained {} agent steps already; a smaller budget would "
+          "discard them (copy the run and shorten the copy's log instead)",
+          run_dir, agent_steps.value_or(0), impl->agent_steps);
     if (fs::exists(log_path)) ScalarLogger::truncate_after(log_path, impl->env_steps);
-  } else if (fs::exists(log_path)) {
-    // Killed before its first checkpoint: start over, keeping nothing the new run would not write again.
-    ScalarLogger::truncate_after(log_path, -1);
+  } else {
+    // Only a run killed before its first checkpoint may start over: anything else lost its checkpoint.
+    check(!fs::exists(impl->path(kFinalFile)),
+          "--resume {}: {} is missing but {} exists (the run finished, then its checkpoint was removed); "
+          "it cannot be resumed",
+          run_dir, kCheckpointFile, kFinalFile);
+    if (fs::exists(log_path)) {
+      int64_t logged_agent_steps = 0;
+      for (const auto& row : ScalarLogger::read(log_path))
+        if (row.tag == "train/agent_steps") logged_agent_steps = static_cast<int64_t>(row.value);
+      check(logged_agent_steps < impl->config.get_int("checkpoint.every"),
+            "--resume {}: {} is missing although the log reaches agent step {} (past the first checkpoint "
+            "at {}); it cannot be resumed without losing the log",
+            run_dir, kCheckpointFile, logged_agent_steps, impl->config.get_int("checkpoint.every"));
+      // Killed before its first checkpoint: start over, keeping nothing the new run would not write again.
+      ScalarLogger::truncate_after(log_path, -1);
+    }
   }
   const std::string notes = run_notes();
   const std::string old_config = read_file(cfg.string());
@@ -465,6 +530,8 @@ void Trainer::run(bool progress) {
   const int64_t total = s.config.get_int("train.agent_steps");
   if (s.agent_steps >= total) {
     fmt::print(stderr, "{}: already trained for {} agent steps\n", s.dir, s.agent_steps);
+    // Killed while final.pt was written: the checkpoint holds the same networks.
+    if (!fs::exists(s.path(kFinalFile))) s.save_final();
     return;
   }
   ProgressBar bar(s.agent_steps, total, progress);

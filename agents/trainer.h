@@ -28,6 +28,12 @@ class Trainer {
   void run(bool progress);
   const Config& config() const;
   const std::string& run_dir() const;
+  // Where the run stands (what its closing line reports).
+  struct Summary {
+    int64_t agent_steps = 0, env_steps = 0;
+    double last_eval = 0, last_return = 0;  // NaN if none in this session
+  };
+  Summary summary() const;
 
   // File names inside a run directory.
   static constexpr const char* kConfigFile = "config.yaml";

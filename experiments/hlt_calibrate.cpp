@@ -20,6 +20,7 @@
 #include "envs/perception/tabletop_scene.h"
 #include "hlt/util/error.h"
 #include "hlt/util/files.h"
+#include "hlt/util/main_guard.h"
 
 namespace {
 
@@ -47,7 +48,7 @@ void render_demo(const std::string& dir, cv::Size inner, double square) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int run_tool(int argc, char** argv) {
   CLI::App app{"Estimate camera intrinsics from checkerboard images and write an OpenCV calibration YAML."};
   std::string images, out, demo;
   int cols = 0, rows = 0;
@@ -104,4 +105,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   return 0;
+}
+
+int main(int argc, char** argv) {
+  return hlt::guarded_main("hlt_calibrate", [&] { return run_tool(argc, argv); });
 }

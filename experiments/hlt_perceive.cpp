@@ -30,6 +30,7 @@
 #include "envs/perception/tabletop_scene.h"
 #include "hlt/util/error.h"
 #include "hlt/util/files.h"
+#include "hlt/util/main_guard.h"
 
 namespace {
 
@@ -92,7 +93,7 @@ cv::Scalar parse_hsv(const std::string& text, const char* flag) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int run_tool(int argc, char** argv) {
   CLI::App app{"Detect AprilTags, track the coloured block and estimate the pushing task's state per frame."};
   std::string input, calibration, tags_path, csv = "perception_states.csv", detections_csv, overlay,
                                              save_frames;
@@ -249,4 +250,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   return 0;
+}
+
+int main(int argc, char** argv) {
+  return hlt::guarded_main("hlt_perceive", [&] { return run_tool(argc, argv); });
 }

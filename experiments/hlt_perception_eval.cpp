@@ -21,6 +21,7 @@
 #include "envs/perception/tabletop_scene.h"
 #include "envs/perception/tag_detector.h"
 #include "hlt/util/error.h"
+#include "hlt/util/main_guard.h"
 
 namespace {
 
@@ -188,7 +189,7 @@ void calibration_table() {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int run_tool(int argc, char** argv) {
   CLI::App app{"Accuracy of tag poses, colour tracking and calibration on rendered images with known truth."};
   int seeds = 3;
   bool tags_only = false;
@@ -236,4 +237,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   return 0;
+}
+
+int main(int argc, char** argv) {
+  return hlt::guarded_main("hlt_perception_eval", [&] { return run_tool(argc, argv); });
 }

@@ -24,6 +24,7 @@
 #include "envs/rollout.h"
 #include "hlt/util/error.h"
 #include "hlt/util/files.h"
+#include "hlt/util/main_guard.h"
 #include "hlt/util/random.h"
 
 namespace hlt {
@@ -229,7 +230,7 @@ int run(Options o, bool frame_skip_given) {
 }  // namespace
 }  // namespace hlt
 
-int main(int argc, char** argv) {
+int run_tool(int argc, char** argv) {
   hlt::Options o;
   CLI::App app{"Runs a registered environment with a given policy and reports episode returns."};
   bool list = false;
@@ -251,17 +252,15 @@ int main(int argc, char** argv) {
   app.add_option("--width", o.width, "Frame width in pixels")->capture_default_str();
   app.add_option("--height", o.height, "Frame height in pixels")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
-  try {
-    if (list) {
-      for (const auto& n : hlt::env_names())
-        std::cout << n << "\n";
-      return 0;
-    }
-    hlt::check(!o.env.empty(), "--env is required; known environments: {}",
-               fmt::join(hlt::env_names(), ", "));
-    return hlt::run(o, app.count("--frame-skip") > 0);
-  } catch (const hlt::Error& e) {
-    std::cerr << "error: " << e.what() << "\n";
-    return 1;
+  if (list) {
+    for (const auto& n : hlt::env_names())
+      std::cout << n << "\n";
+    return 0;
   }
+  hlt::check(!o.env.empty(), "--env is required; known environments: {}", fmt::join(hlt::env_names(), ", "));
+  return hlt::run(o, app.count("--frame-skip") > 0);
+}
+
+int main(int argc, char** argv) {
+  return hlt::guarded_main("hlt_rollout", [&] { return run_tool(argc, argv); });
 }

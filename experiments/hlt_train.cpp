@@ -19,6 +19,7 @@
 #include "hlt/util/blas_kernel.h"
 #include "hlt/util/error.h"
 #include "hlt/util/files.h"
+#include "hlt/util/main_guard.h"
 #include "hlt/util/progress_bar.h"
 #include "hlt/util/scalar_logger.h"
 
@@ -38,19 +39,13 @@ std::optional<std::string> env_in_file(const std::string& path) {
   return std::nullopt;
 }
 
-void print_summary(const std::string& dir) {
-  const auto rows = ScalarLogger::read((fs::path(dir) / Trainer::kLogFile).string());
-  double last_eval = std::nan(""), last_return = std::nan("");
-  int64_t last_step = 0;
-  for (const auto& r : rows) {
-    if (r.tag == "eval/return_mean") last_eval = r.value;
-    if (r.tag == "train/episode_return") last_return = r.value;
-    last_step = std::max(last_step, r.step);
-  }
+void print_summary(const Trainer& trainer) {
+  const Trainer::Summary s = trainer.summary();
   fmt::print(
-      "done: {} environment steps; last evaluation return {:.1f}, last training episode return {:.1f}\n",
-      last_step, last_eval, last_return);
-  fmt::print("results in {}/ ({}, {}, {}, {})\n", dir, Trainer::kLogFile, Trainer::kConfigFile,
+      "done: {} agent steps ({} environment steps); last evaluation return {:.1f}, last training "
+      "episode return {:.1f}\n",
+      s.agent_steps, s.env_steps, s.last_eval, s.last_return);
+  fmt::print("results in {}/ ({}, {}, {}, {})\n", trainer.run_dir(), Trainer::kLogFile, Trainer::kConfigFile,
              Trainer::kFinalFile, Trainer::kCheckpointFile);
 }
 
@@ -86,7 +81,7 @@ int run(int argc, char** argv) {
     fmt::print("resuming {} ({} on {})\n", resume, trainer->config().get_string("method"),
                trainer->config().get_string("env"));
     trainer->run(progress);
-    print_summary(resume);
+    print_summary(*trainer);
     return 0;
   }
 
@@ -113,7 +108,7 @@ int run(int argc, char** argv) {
              config.get_int("train.agent_steps"), config.get_int("train.frame_skip"), out);
   fmt::print("blas: {}\n", blas_kernel().summary());
   trainer->run(progress);
-  print_summary(out);
+  print_summary(*trainer);
   return 0;
 }
 
@@ -121,10 +116,5 @@ int run(int argc, char** argv) {
 }  // namespace hlt
 
 int main(int argc, char** argv) {
-  try {
-    return hlt::run(argc, argv);
-  } catch (const hlt::Error& e) {
-    fmt::print(stderr, "hlt_train: error: {}\n", e.what());
-    return 2;
-  }
+  return hlt::guarded_main("hlt_train", [&] { return hlt::run(argc, argv); });
 }

@@ -11,7 +11,8 @@ namespace hlt {
 namespace {
 
 constexpr const char* kFormatKey = "hlt_format";
-constexpr const char* kFormat = "hlt-checkpoint-1";
+// 2: twin critics as one module, flat Adam moments, SAC's own generator.
+constexpr const char* kFormat = "hlt-checkpoint-2";
 
 }  // namespace
 
@@ -85,8 +86,12 @@ CheckpointReader::CheckpointReader(const std::string& path) : impl_(std::make_un
                             std::string(e.what_without_backtrace()).substr(0, 200)));
   }
   c10::IValue format;
-  check(impl_->root.try_read(kFormatKey, format) && format.isString() && format.toStringRef() == kFormat,
+  check(impl_->root.try_read(kFormatKey, format) && format.isString(),
         "{} is not an hlt checkpoint (expected format '{}')", path, kFormat);
+  check(format.toStringRef() == kFormat,
+        "checkpoint {} has format '{}', this hlt reads '{}' (it was written by another version of hlt: use "
+        "that version to resume or run it)",
+        path, format.toStringRef(), kFormat);
 }
 CheckpointReader::~CheckpointReader() = default;
 

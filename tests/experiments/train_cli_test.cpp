@@ -115,6 +115,83 @@ TEST(TrainCli, NeverOverwritesARunAndReportsCorruptCheckpoints) {
   EXPECT_EQ(read_file(dir + "/scalars.csv"), log_before);
 }
 
+TEST(TrainCli, ResumeNeverDestroysData) {
+  const std::string dir = fresh_dir("resume_guards");
+  // 100 agent steps are two whole pendulum episodes: the run ends at an episode end, checkpointed.
+  Result r =
+      run(kTrain + kSmall + " --method sac --steps 100 checkpoint.every=50 eval.every=50 --out " + dir);
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("done: 100 agent steps (400 environment steps)"), std::string::npos) << r.output;
+  const std::string log = read_file(dir + "/scalars.csv"), config = read_file(dir + "/config.yaml");
+  // A smaller budget would discard trained steps.
+  r = run(kTrain + " --resume " + dir + " --steps 40 --no-progress");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("has trained 100 agent steps already"), std::string::npos) << r.output;
+  EXPECT_EQ(read_file(dir + "/scalars.csv"), log);
+  EXPECT_EQ(read_file(dir + "/config.yaml"), config);
+  // Killed while final.pt was written: resuming the finished run writes it; stale temporaries go.
+  fs::remove(dir + "/final.pt");
+  write_file_atomic(dir + "/final.pt.tmp.99999", "half a checkpoint");
+  r = run(kTrain + " --resume " + dir + " --no-progress");
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir + "/final.pt"));
+  EXPECT_FALSE(fs::exists(dir + "/final.pt.tmp.99999"));
+  EXPECT_EQ(read_file(dir + "/scalars.csv"), log);
+  // A finished run without its checkpoint is not restarted from zero.
+  fs::remove(dir + "/checkpoint.pt");
+  r = run(kTrain + " --resume " + dir + " --no-progress");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("checkpoint.pt is missing but final.pt exists"), std::string::npos) << r.output;
+  EXPECT_EQ(read_file(dir + "/scalars.csv"), log);
+  // --out on a directory that holds only a final.pt does not overwrite it.
+  const std::string only_final = fresh_dir("only_final");
+  fs::create_directories(only_final);
+  fs::copy_file(dir + "/final.pt", only_final + "/final.pt");
+  r = run(kTrain + kSmall + " --method sac --steps 10 --out " + only_final);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("already holds a run (final.pt exists)"), std::string::npos) << r.output;
+}
+
+TEST(TrainCli, DivergedRunStopsWithAnErrorAndNoFinalWeights) {
+  const std::string dir = fresh_dir("diverged");
+  Result r = run(kTrain + kSmall +
+                 " --method sac --steps 1500 sac.lr=1 sac.initial_alpha=10000 eval.every=0 "
+                 "checkpoint.every=100 --out " +
+                 dir);
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("training diverged at agent step"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir + "/final.pt"));
+}
+
+TEST(TrainCli, SecondWriterOfARunDirectoryIsRefused) {
+  const std::string dir = fresh_dir("locked");
+  std::vector<std::string> words{kTrain};
+  std::istringstream split(kSmall + " --method sac --steps 100000 eval.every=0 --out " + dir);
+  for (std::string w; split >> w;)
+    words.push_back(w);
+  std::vector<char*> argv;
+  for (auto& w : words)
+    argv.push_back(w.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
+  posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
+  pid_t pid = 0;
+  ASSERT_EQ(::posix_spawn(&pid, kTrain.c_str(), &actions, nullptr, argv.data(), environ), 0);
+  posix_spawn_file_actions_destroy(&actions);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (!fs::exists(dir + "/scalars.csv") && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  const std::string config = read_file(dir + "/config.yaml");
+  Result r = run(kTrain + " --resume " + dir + " --no-progress");
+  ::kill(pid, SIGKILL);
+  ::waitpid(pid, nullptr, 0);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("is in use by process " + std::to_string(pid)), std::string::npos) << r.output;
+  EXPECT_EQ(read_file(dir + "/config.yaml"), config);
+}
+
 // Rows of a log without wall-clock values: what must be identical between two runs of the same seed.
 std::vector<std::string> comparable_rows(const std::string& path) {
   std::vector<std::string> rows;
