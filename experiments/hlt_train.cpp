@@ -93,6 +93,8 @@ int run(int argc, char** argv) {
   const fs::path env_defaults = fs::path(HLT_CONFIG_DIR) / (env_name + ".yaml");
   if (fs::exists(env_defaults)) config.load_file(env_defaults.string());
   if (!config_file.empty()) config.load_file(config_file);
+  // The flags come after the file (the documented order), --env included.
+  if (!env.empty()) config.set("env", env, "--env");
   if (!method.empty()) config.set("method", method, "--method");
   if (seed) config.set("seed", std::to_string(*seed), "--seed");
   if (steps) config.set("train.agent_steps", std::to_string(*steps), "--steps");

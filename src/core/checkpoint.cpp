@@ -4,6 +4,7 @@
 
 #include <torch/torch.h>
 
+#include "hlt/util/checksum.h"
 #include "hlt/util/error.h"
 #include "hlt/util/files.h"
 
@@ -61,13 +62,18 @@ void CheckpointWriter::save(const std::string& path) {
   for (auto& [name, nested] : impl_->nested)
     impl_->root.write(name, *nested);
   impl_->nested.clear();
-  write_atomic_with(path, [&](const std::string& tmp) {
-    try {
-      impl_->root.save_to(tmp);
-    } catch (const c10::Error& e) {
-      throw Error(fmt::format("cannot write checkpoint {}: {}", path, e.what_without_backtrace()));
-    }
-  });
+  // Serialised in memory, then written with a checksum trailer: LibTorch does not verify its zip records'
+  // CRCs, so without it a flipped bit in tensor data would load silently.
+  std::string bytes;
+  try {
+    impl_->root.save_to([&](const void* data, size_t size) {
+      bytes.append(static_cast<const char*>(data), size);
+      return size;
+    });
+  } catch (const c10::Error& e) {
+    throw Error(fmt::format("cannot write checkpoint {}: {}", path, e.what_without_backtrace()));
+  }
+  write_file_atomic(path, with_checksum_trailer(std::move(bytes)));
 }
 
 struct CheckpointReader::Impl {
@@ -79,8 +85,10 @@ struct CheckpointReader::Impl {
 CheckpointReader::CheckpointReader(const std::string& path) : impl_(std::make_unique<Impl>()) {
   impl_->path = path;
   check(file_exists(path), "checkpoint {} does not exist", path);
+  const std::string bytes = read_file(path);
+  const std::string_view content = verified_content(bytes, "checkpoint " + path);
   try {
-    impl_->root.load_from(path);
+    impl_->root.load_from(content.data(), content.size());
   } catch (const c10::Error& e) {
     throw Error(fmt::format("checkpoint {} is corrupt or not a checkpoint ({})", path,
                             std::string(e.what_without_backtrace()).substr(0, 200)));

@@ -65,12 +65,18 @@ size_t edit_distance(const std::string& a, const std::string& b) {
 }
 
 // Flattens nested maps into dotted keys; sequences and scalars are leaves.
+// Keys are a few levels deep; an alias that refers to its own anchor would otherwise recurse forever.
+constexpr int kMaxDepth = 16;
+
 void flatten(const YAML::Node& node, const std::string& prefix,
-             std::vector<std::pair<std::string, YAML::Node>>& out, const std::string& source) {
+             std::vector<std::pair<std::string, YAML::Node>>& out, const std::string& source, int depth = 0) {
+  check(depth < kMaxDepth,
+        "{}: settings nested more than {} levels deep at '{}' (an alias that refers to itself?)", source,
+        kMaxDepth, prefix.substr(0, 120));
   if (node.IsMap()) {
     for (const auto& kv : node) {
       const std::string k = kv.first.as<std::string>();
-      flatten(kv.second, prefix.empty() ? k : prefix + "." + k, out, source);
+      flatten(kv.second, prefix.empty() ? k : prefix + "." + k, out, source, depth + 1);
     }
   } else if (node.IsNull() && prefix.empty()) {
     // An empty document sets nothing.

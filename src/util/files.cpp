@@ -57,6 +57,7 @@ void write_file_atomic(const std::string& path, const std::string& content) {
 }
 
 std::string read_file(const std::string& path) {
+  check(!fs::is_directory(path), "cannot read {}: it is a directory, not a file", path);
   std::ifstream in(path, std::ios::binary);
   check(in.good(), "cannot read {}: {}", path, fs::exists(path) ? "permission denied" : "no such file");
   std::ostringstream ss;

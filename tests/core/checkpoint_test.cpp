@@ -1,4 +1,5 @@
 #include "hlt/core/checkpoint.h"
+#include "hlt/util/checksum.h"
 
 #include <gtest/gtest.h>
 #include <torch/torch.h>
@@ -94,18 +95,31 @@ TEST(Checkpoint, TruncatedCorruptAndMissingFilesAreClearErrors) {
   const std::string full = read_file(path);
   write_file_atomic(path, full.substr(0, full.size() / 2));
   std::string m = error_of([&] { CheckpointReader r(path); });
-  EXPECT_NE(m.find("is corrupt or not a checkpoint"), std::string::npos) << m;
+  EXPECT_NE(m.find("is truncated or corrupt (its checksum trailer is missing)"), std::string::npos) << m;
   write_file_atomic(path, "this is not a zip file");
   m = error_of([&] { CheckpointReader r(path); });
-  EXPECT_NE(m.find("is corrupt or not a checkpoint"), std::string::npos) << m;
+  EXPECT_NE(m.find("checksum trailer is missing"), std::string::npos) << m;
   m = error_of([&] { CheckpointReader r(temp("hlt_no_such_checkpoint.pt")); });
   EXPECT_NE(m.find("does not exist"), std::string::npos) << m;
-  // A valid torch archive that is not ours.
+  // One flipped bit inside the tensor data (LibTorch itself would load it).
+  std::string flipped = full;
+  flipped[flipped.size() / 2] ^= 0x10;
+  write_file_atomic(path, flipped);
+  m = error_of([&] { CheckpointReader r(path); });
+  EXPECT_NE(m.find("is corrupt: its checksum does not match"), std::string::npos) << m;
+  // A valid torch archive that is not ours, with and without a trailer.
   torch::serialize::OutputArchive foreign;
   foreign.write("x", torch::ones({2}));
   foreign.save_to(path);
   m = error_of([&] { CheckpointReader r(path); });
+  EXPECT_NE(m.find("checksum trailer is missing"), std::string::npos) << m;
+  write_file_atomic(path, with_checksum_trailer(read_file(path)));
+  m = error_of([&] { CheckpointReader r(path); });
   EXPECT_NE(m.find("not an hlt checkpoint"), std::string::npos) << m;
+  // Garbage with a valid trailer is still refused as corrupt.
+  write_file_atomic(path, with_checksum_trailer("this is not a zip file"));
+  m = error_of([&] { CheckpointReader r(path); });
+  EXPECT_NE(m.find("is corrupt or not a checkpoint"), std::string::npos) << m;
 }
 
 TEST(Checkpoint, SaveIsAtomic) {

@@ -4,6 +4,7 @@
 
 #include <filesystem>
 
+#include "hlt/util/checksum.h"
 #include "hlt/util/error.h"
 #include "hlt/util/files.h"
 
@@ -93,6 +94,33 @@ TEST(Config, YamlRoundTrip) {
   EXPECT_EQ(d.get_int_list("policy.hidden"), (Config::IntList{128, 64}));
   EXPECT_EQ(d.to_yaml(), c.to_yaml());
   EXPECT_NE(c.describe().find("planner.samples"), std::string::npos);
+}
+
+TEST(Config, SelfReferentialAliasesAndDirectoriesAreClearErrors) {
+  Config c = make_config();
+  std::string m = message_of([&] { c.merge_yaml("planner: &p\n  inner: *p\n", "loop.yaml"); });
+  EXPECT_NE(m.find("nested more than 16 levels"), std::string::npos) << m;
+  m = message_of([&] { c.merge_yaml("policy:\n  hidden: &a [1, *a]\n", "list.yaml"); });
+  EXPECT_NE(m.find("config key 'policy.hidden' in list.yaml"), std::string::npos) << m;
+  const auto dir = std::filesystem::temp_directory_path() / "hlt_config_dir_test";
+  std::filesystem::create_directories(dir);
+  m = message_of([&] { c.load_file(dir.string()); });
+  EXPECT_NE(m.find("it is a directory"), std::string::npos) << m;
+}
+
+TEST(Checksum, DetectsFlipsTruncationAndMissingTrailers) {
+  const std::string content(1000, 'x');
+  const std::string stored = with_checksum_trailer(content);
+  EXPECT_EQ(verified_content(stored, "f"), content);
+  for (size_t i : {size_t{0}, size_t{7}, size_t{500}, size_t{999}}) {
+    std::string bad = stored;
+    bad[i] ^= 1;
+    EXPECT_THROW(verified_content(bad, "f"), Error) << i;
+  }
+  EXPECT_THROW(verified_content(stored.substr(0, 900), "f"), Error);
+  EXPECT_THROW(verified_content(content, "f"), Error);
+  EXPECT_NE(checksum64("abc", 3), checksum64("abd", 3));
+  EXPECT_NE(checksum64("", 0), checksum64(std::string(1, '\0').data(), 1));
 }
 
 }  // namespace
