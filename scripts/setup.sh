@@ -11,6 +11,7 @@ packages=(
   libopencv-dev libapriltag-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-matplotlib python3-numpy
+  python3-protobuf python3-crc32c
   clang-format
 )
 

@@ -21,23 +21,35 @@ std::string format_row(double wall_time, int64_t step, const std::string& tag, d
   return fmt::format("{:.6f},{},{},{:.17g}\n", wall_time, step, tag, value);
 }
 
+std::string directory_of(const std::string& path) {
+  const auto dir = std::filesystem::path(path).parent_path();
+  return dir.empty() ? "." : dir.string();
+}
+
 }  // namespace
 
-ScalarLogger::ScalarLogger(const std::string& path) : path_(path) {
+ScalarLogger::ScalarLogger(const std::string& path) : path_(path), events_(directory_of(path)) {
   const bool fresh = !std::filesystem::exists(path) || std::filesystem::file_size(path) == 0;
   out_.open(path, std::ios::app);
   check(out_.good(), "cannot open log {} for writing", path);
   if (fresh) {
     out_ << kHeader << '\n';
     out_.flush();
+    check(out_.good(), "cannot write to log {}", path);
+  } else if (events_.created()) {
+    for (const auto& row : read(path))
+      events_.add_scalar(row.step, row.tag, static_cast<float>(row.value), row.wall_time);
   }
 }
 
 void ScalarLogger::log(int64_t step, const std::string& tag, double value) {
   check(tag.find(',') == std::string::npos && tag.find('\n') == std::string::npos,
         "log tag '{}' must not contain commas or newlines", tag);
-  out_ << format_row(unix_seconds(), step, tag, value);
+  const double wall_time = unix_seconds();
+  out_ << format_row(wall_time, step, tag, value);
   out_.flush();
+  check(out_.good(), "cannot write to log {}", path_);
+  events_.add_scalar(step, tag, static_cast<float>(value), wall_time);
 }
 
 std::vector<ScalarRow> ScalarLogger::read(const std::string& path) {
@@ -84,6 +96,7 @@ void ScalarLogger::truncate_after(const std::string& path, int64_t max_step) {
     if (step <= max_step) kept += line + "\n";
   }
   write_file_atomic(path, kept);
+  EventFileWriter::truncate_after(directory_of(path), max_step);
 }
 
 }  // namespace hlt
