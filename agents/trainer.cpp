@@ -463,6 +463,12 @@ std::unique_ptr<Trainer> Trainer::create(const Config& config, const std::string
           "choose another --out",
           run_dir, f, run_dir);
   }
+  for (const auto& entry : fs::directory_iterator(run_dir)) {
+    const std::string name = entry.path().filename().string();
+    check(name.rfind("events.out.tfevents.", 0) != 0,
+          "{} already holds TensorBoard event files ({}) of another run; choose another --out", run_dir,
+          name);
+  }
   remove_stale_temporaries(run_dir);
   auto impl = std::make_unique<Impl>();
   impl->lock = std::move(lock);

@@ -256,6 +256,21 @@ TEST(TrainCli, KilledRunResumesToTheSameLog) {
   r = run(kTrain + " --resume " + killed + " --no-progress");
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_EQ(comparable_rows(killed + "/scalars.csv"), full);
+  // The TensorBoard event files agree too, read by an independent decoder.
+  auto scalars_of = [](const std::string& dir) {
+    std::string rows;
+    for (const auto& e : fs::directory_iterator(dir)) {
+      if (e.path().filename().string().rfind("events.out.tfevents.", 0) != 0) continue;
+      const Result d = run("/usr/bin/python3 " + std::string(HLT_TFEVENTS_READER) + " " + e.path().string() +
+                           " | grep -v ',time/'");
+      EXPECT_EQ(d.code, 0) << d.output;
+      rows += d.output;
+    }
+    return rows;
+  };
+  const std::string events = scalars_of(straight);
+  EXPECT_GT(std::count(events.begin(), events.end(), '\n'), 50);
+  EXPECT_EQ(scalars_of(killed), events);
 }
 
 }  // namespace
