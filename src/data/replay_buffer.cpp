@@ -1,12 +1,25 @@
 #include "hlt/data/replay_buffer.h"
 
+#include <fstream>
 #include <sstream>
+#include <string>
 
 #include <torch/torch.h>
 
 #include "hlt/util/error.h"
 
 namespace hlt {
+namespace {
+
+// MemAvailable from /proc/meminfo, in bytes; 0 if unknown.
+double available_memory_bytes() {
+  std::ifstream in("/proc/meminfo");
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind("MemAvailable:", 0) == 0) return std::stod(line.substr(13)) * 1024.0;
+  return 0;
+}
+
+}  // namespace
 namespace {
 
 void copy_row(at::Tensor& t, int64_t row, const double* src) {
@@ -20,13 +33,30 @@ void copy_row(at::Tensor& t, int64_t row, const double* src) {
 ReplayBuffer::ReplayBuffer(int64_t capacity, int64_t state_dim, int64_t action_dim, uint64_t seed)
     : capacity_(capacity), state_dim_(state_dim), action_dim_(action_dim), rng_(seed) {
   check(capacity > 0 && state_dim > 0 && action_dim > 0, "ReplayBuffer needs positive sizes");
+  // Refused up front rather than failing inside the allocator (or later, swapping).
+  const double bytes = static_cast<double>(capacity) * (2 * state_dim + 2 * action_dim + 2) * sizeof(float);
+  const double available = available_memory_bytes();
+  auto too_big = [&] {
+    return fmt::format(
+        "a replay buffer of {} transitions (state {}, action {}) needs {:.1f} GB, more than the {:.1f} GB "
+        "of memory available; lower train.replay_capacity",
+        capacity, state_dim, action_dim, bytes / 1e9, available / 1e9);
+  };
+  check(available <= 0 || bytes < 0.9 * available, "{}", too_big());
   const auto opts = torch::TensorOptions().dtype(torch::kFloat32);
-  states_ = torch::zeros({capacity, state_dim}, opts);
-  actions_ = torch::zeros({capacity, action_dim}, opts);
-  rewards_ = torch::zeros({capacity, 1}, opts);
-  next_states_ = torch::zeros({capacity, state_dim}, opts);
-  next_actions_ = torch::zeros({capacity, action_dim}, opts);
-  dones_ = torch::zeros({capacity, 1}, opts);
+  try {
+    states_ = torch::zeros({capacity, state_dim}, opts);
+    actions_ = torch::zeros({capacity, action_dim}, opts);
+    rewards_ = torch::zeros({capacity, 1}, opts);
+    next_states_ = torch::zeros({capacity, state_dim}, opts);
+    next_actions_ = torch::zeros({capacity, action_dim}, opts);
+    dones_ = torch::zeros({capacity, 1}, opts);
+  } catch (const c10::Error&) {
+    // A memory limit (ulimit -v, a cgroup) below what the machine reports as available.
+    throw Error(fmt::format("cannot allocate a replay buffer of {} transitions ({:.1f} GB): out of memory; "
+                            "lower train.replay_capacity",
+                            capacity, bytes / 1e9));
+  }
 }
 
 void ReplayBuffer::add(const double* state, const double* action, double reward, const double* next_state,

@@ -95,5 +95,14 @@ TEST(ReplayBuffer, SaveLoadRoundTripContinuesIdentically) {
   EXPECT_THROW(wrong.load(r.archive("buffer")), Error);
 }
 
+TEST(ReplayBuffer, CapacityBeyondMemoryIsRefusedUpFront) {
+  try {
+    ReplayBuffer rb(100'000'000'000, 28, 8, 0);  // 30 TB
+    ADD_FAILURE() << "allocated";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("lower train.replay_capacity"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace hlt

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Builds everything with AddressSanitizer and UndefinedBehaviorSanitizer into build-sanitize/ and runs the
+# whole test suite under them. Takes about twice as long as a normal build and test; not part of CI.
+#   ./scripts/sanitize.sh [ctest arguments, e.g. -R test_util]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+./scripts/setup.sh
+export HLT_BUILD_DIR=build-sanitize HLT_BUILD_TYPE=RelWithDebInfo
+if [ ! -f "$HLT_BUILD_DIR/build.ninja" ]; then
+  cmake -S . -B "$HLT_BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DHLT_SANITIZE=address,undefined \
+    -DHLT_BUILD_BENCH=OFF
+fi
+./scripts/build.sh
+# LibTorch is not built with ASan: its own allocations are not checked, only ours. The leak inside
+# OpenCV's libgphoto2 camera back-end (loaded by videoio) is not ours either: suppressed.
+export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:detect_odr_violation=0
+export LSAN_OPTIONS=suppressions=$PWD/scripts/sanitize.supp:print_suppressions=0
+export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+cd "$HLT_BUILD_DIR"
+ctest --output-on-failure "$@"
