@@ -13,7 +13,10 @@
 #include <vector>
 
 #include <fmt/format.h>
+#include <unistd.h>
 #include <CLI/CLI.hpp>
+#include <cerrno>
+#include <cstring>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
@@ -95,25 +98,61 @@ void write_png(const std::string& path, const cv::Mat& image) {
   });
 }
 
-// Writes `frames` as a video at `fps`. Returns false (and writes nothing) when OpenCV has no encoder for the
-// container.
-bool write_video(const std::string& path, const std::vector<cv::Mat>& frames, double fps) {
-  const std::string ext = extension(path);
-  int fourcc = 0;
-  if (ext == "mp4") {
-    fourcc = cv::VideoWriter::fourcc('m', 'p', '4', 'v');
-  } else if (ext == "avi") {
-    fourcc = cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
-  } else {
-    throw Error(fmt::format("--video {}: use a .mp4 or .avi file name", path));
+// Recorded frames, streamed: each goes to the video encoder as it is rendered (the file is written under a
+// temporary name and renamed when complete), and only a bounded, evenly spaced subset is kept for the image
+// strip (every stride-th frame, the stride doubling whenever 4 x strip_frames are held), so memory does not
+// grow with the number or length of the episodes.
+class FrameRecorder {
+ public:
+  FrameRecorder(std::string video, double fps, int strip_frames)
+      : video_(std::move(video)), fps_(fps), keep_(4 * static_cast<size_t>(strip_frames)) {}
+
+  void add(const cv::Mat& frame) {
+    if (!video_.empty() && !writer_failed_) {
+      if (!writer_.isOpened()) open(frame.size());
+      if (writer_.isOpened()) writer_.write(frame);
+    }
+    if (count_ % stride_ == 0) kept_.push_back(frame.clone());
+    ++count_;
+    if (kept_.size() >= keep_) {
+      std::vector<cv::Mat> half;
+      for (size_t i = 0; i < kept_.size(); i += 2)
+        half.push_back(kept_[i]);
+      kept_.swap(half);
+      stride_ *= 2;
+    }
   }
-  cv::VideoWriter writer(path, fourcc, fps, frames.front().size());
-  if (!writer.isOpened()) return false;
-  for (const cv::Mat& f : frames)
-    writer.write(f);
-  writer.release();
-  return true;
-}
+  size_t frames() const { return count_; }
+  // Closes the video; false if OpenCV had no encoder for its container (nothing is left behind then).
+  bool finish_video() {
+    if (writer_failed_ || !writer_.isOpened()) return false;
+    writer_.release();
+    check(std::rename(tmp_.c_str(), video_.c_str()) == 0, "could not write the video {}: {}", video_,
+          std::strerror(errno));
+    return true;
+  }
+  const std::vector<cv::Mat>& strip_frames() const { return kept_; }
+
+ private:
+  void open(cv::Size size) {
+    const std::string ext = extension(video_);
+    const int fourcc = ext == "mp4" ? cv::VideoWriter::fourcc('m', 'p', '4', 'v')
+                                    : cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
+    // OpenCV picks the container from the name, so the temporary name keeps the extension.
+    tmp_ = fmt::format("{}.tmp.{}.{}", video_, static_cast<long>(::getpid()), ext);
+    writer_.open(tmp_, fourcc, fps_, size);
+    if (!writer_.isOpened()) {
+      writer_failed_ = true;
+      std::remove(tmp_.c_str());
+    }
+  }
+  std::string video_, tmp_;
+  double fps_;
+  size_t keep_, count_ = 0, stride_ = 1;
+  bool writer_failed_ = false;
+  cv::VideoWriter writer_;
+  std::vector<cv::Mat> kept_;
+};
 
 struct Options {
   std::string env;
@@ -172,12 +211,12 @@ int run(Options o, bool frame_skip_given) {
       csv << ",action_" << i;
     csv << ",reward,done,truncated\n";
   }
-  std::vector<cv::Mat> frames;
+  FrameRecorder recorder(o.video, std::max(1.0, std::round(1.0 / env->dt())), o.strip_frames);
   std::vector<EpisodeStats> episodes;
   for (int ep = 0; ep < o.episodes; ++ep) {
     const bool record = recording && ep < o.record_episodes;
     auto on_reset = [&]() {
-      if (record) frames.push_back(env->render(o.width, o.height));
+      if (record) recorder.add(env->render(o.width, o.height));
     };
     auto on_step = [&](const Transition& t) {
       if (!o.csv.empty()) {
@@ -189,7 +228,7 @@ int run(Options o, bool frame_skip_given) {
         csv << fmt::format(",{:.17g},{},{}\n", t.result.reward, t.result.done() ? 1 : 0,
                            t.result.truncated ? 1 : 0);
       }
-      if (record) frames.push_back(env->render(o.width, o.height));
+      if (record) recorder.add(env->render(o.width, o.height));
     };
     // The first episode starts from the seed; later ones continue the environment's generator.
     const EpisodeStats s = run_episode(
@@ -207,21 +246,21 @@ int run(Options o, bool frame_skip_given) {
     write_file_atomic(o.csv, csv.str());
     fmt::print("wrote {}\n", o.csv);
   }
-  if (!o.video.empty() && !frames.empty()) {
-    const double fps = std::max(1.0, std::round(1.0 / env->dt()));
-    if (write_video(o.video, frames, fps)) {
-      fmt::print("wrote {} ({} frames at {} fps)\n", o.video, frames.size(), fps);
+  if (!o.video.empty() && recorder.frames() > 0) {
+    if (recorder.finish_video()) {
+      fmt::print("wrote {} ({} frames at {} fps)\n", o.video, recorder.frames(),
+                 std::max(1.0, std::round(1.0 / env->dt())));
     } else {
       const std::string fallback = replace_extension(o.video, "png");
-      write_png(fallback, image_strip(frames, o.strip_frames));
+      write_png(fallback, image_strip(recorder.strip_frames(), o.strip_frames));
       fmt::print(
           stderr,
           "warning: OpenCV has no encoder for {} here; wrote an image strip of {} frames to {} instead\n",
-          o.video, std::min<size_t>(o.strip_frames, frames.size()), fallback);
+          o.video, std::min<size_t>(o.strip_frames, recorder.frames()), fallback);
     }
   }
-  if (!o.strip.empty() && !frames.empty()) {
-    write_png(o.strip, image_strip(frames, o.strip_frames));
+  if (!o.strip.empty() && recorder.frames() > 0) {
+    write_png(o.strip, image_strip(recorder.strip_frames(), o.strip_frames));
     fmt::print("wrote {}\n", o.strip);
   }
   return 0;
