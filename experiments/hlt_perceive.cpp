@@ -8,6 +8,7 @@
 //   camera needed
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <exception>
@@ -147,6 +148,19 @@ int run_tool(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   app.add_flag("--quiet", quiet, "no progress line every 25 frames");
   CLI11_PARSE(app, argc, argv);
+  // CLI11's range validators let NaN through (every comparison with it is false).
+  for (const auto* opt : app.get_options()) {
+    if (opt->count() == 0) continue;
+    for (const std::string& v : opt->results()) {
+      char* end = nullptr;
+      const double x = std::strtod(v.c_str(), &end);
+      if (end != v.c_str() && *end == '\0' && !std::isfinite(x)) {
+        std::fprintf(stderr, "hlt_perceive: error: %s must be a finite number, got '%s'\n",
+                     opt->get_name().c_str(), v.c_str());
+        return 2;
+      }
+    }
+  }
 
   try {
     o.detector.refine_corners = !no_refine;
@@ -191,12 +205,18 @@ int run_tool(int argc, char** argv) {
           csv.size() > 4 && csv.substr(csv.size() - 4) == ".csv" ? csv.substr(0, csv.size() - 4) : csv;
       detections_csv = stem + "_detections.csv";
     }
-    // Rows are flushed as they are written, so a live run stopped any way keeps what it saw.
-    std::ofstream states(csv), detections(detections_csv);
-    hlt::check(states.good(), "cannot write {}", csv);
-    hlt::check(detections.good(), "cannot write {}", detections_csv);
-    states << hlt::PerceptionPipeline::states_csv_header() << "\n";
-    detections << hlt::PerceptionPipeline::detections_csv_header() << "\n";
+    // Rows are flushed as they are written, so a live run stopped any way keeps what it saw. The files are
+    // opened at the first frame read, so an input that yields nothing leaves existing CSVs alone, and every
+    // write is checked: a full disk stops the run instead of dropping rows.
+    std::ofstream states, detections;
+    auto open_csvs = [&] {
+      states.open(csv);
+      detections.open(detections_csv);
+      hlt::check(states.good(), "cannot write {}", csv);
+      hlt::check(detections.good(), "cannot write {}", detections_csv);
+      states << hlt::PerceptionPipeline::states_csv_header() << "\n";
+      detections << hlt::PerceptionPipeline::detections_csv_header() << "\n";
+    };
     if (!save_frames.empty()) hlt::ensure_writable_directory(save_frames);
     cv::VideoWriter writer;
 
@@ -215,8 +235,12 @@ int run_tool(int argc, char** argv) {
         hlt::check(cv::imwrite(fmt::format("{}/frame_{:06d}.png", save_frames, n), frame),
                    "cannot write frames to {}", save_frames);
       const hlt::FrameResult& r = pipeline.process(frame, t);
+      if (n == 0) open_csvs();
       states << hlt::PerceptionPipeline::states_csv_row(r) << "\n" << std::flush;
       detections << hlt::PerceptionPipeline::detections_csv_rows(r) << std::flush;
+      hlt::check(states.good() && detections.good(),
+                 "writing {} or {} failed at frame {} (disk full?); the rows before it are kept", csv,
+                 detections_csv, n);
       if (!overlay.empty()) {
         cv::Mat shown = frame.clone();
         hlt::draw_overlay(shown, camera, r);

@@ -80,6 +80,13 @@ void CameraModel::validate(const std::string& source) const {
   check(std::isfinite(fx_) && std::isfinite(fy_) && fx_ > 0 && fy_ > 0,
         "{}: focal lengths fx, fy must be positive and finite, got {}, {}", source, fx_, fy_);
   check(std::isfinite(cx_) && std::isfinite(cy_), "{}: principal point must be finite", source);
+  // Beyond these no lens exists, and libapriltag's pose solver aborts on such intrinsics instead of failing.
+  const double size = std::max(width_, height_);
+  check(fx_ >= 0.01 * size && fy_ >= 0.01 * size && fx_ <= 1000 * size && fy_ <= 1000 * size,
+        "{}: focal lengths fx, fy = {}, {} px are outside [{}, {}] (0.01 to 1000 times the image size)",
+        source, fx_, fy_, 0.01 * size, 1000 * size);
+  check(cx_ >= -0.5 * width_ && cx_ <= 1.5 * width_ && cy_ >= -0.5 * height_ && cy_ <= 1.5 * height_,
+        "{}: principal point ({}, {}) is far outside the {}x{} image", source, cx_, cy_, width_, height_);
   check(valid_distortion_count(distortion_.size()),
         "{}: distortion_coefficients must have 0, 4, 5, 8, 12 or 14 entries, got {}", source,
         distortion_.size());

@@ -52,7 +52,8 @@ void write_file_atomic(const std::string& path, const std::string& content) {
     check(out.good(), "cannot write {}: {}", tmp, std::strerror(errno));
     out << content;
     out.flush();
-    check(out.good(), "write to {} failed", tmp);
+    check(out.good(), "cannot write {}: {} (the previous version, if any, is kept)", path,
+          errno != 0 ? std::strerror(errno) : "write failed");
   });
 }
 

@@ -211,6 +211,32 @@ TEST(Sweep, ReportsEveryFailureAndTellsRunStatesApart) {
   EXPECT_NE(r.output.find("seed 1    missing"), std::string::npos) << r.output;
 }
 
+TEST(TrainCli, FullDiskStopsTheRunWithAMessageAndKeepsWhatWasWritten) {
+  const fs::path mount = fs::temp_directory_path() / "hlt_full_disk";
+  fs::create_directories(mount);
+  ::system(("umount " + mount.string() + " 2>/dev/null").c_str());
+  if (::system(("mount -t tmpfs -o size=64k tmpfs " + mount.string() + " 2>/dev/null").c_str()) != 0)
+    GTEST_SKIP() << "cannot mount a 64 KiB tmpfs here (needs root and mount permission)";
+  const std::string dir = (mount / "run").string();
+  Result r =
+      run(kTrain + kSmall + " --method sac --steps 3000 eval.every=500 checkpoint.every=500 --out " + dir);
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("No space left on device"), std::string::npos) << r.output;
+  // What was written before is intact: the config and a log that parses.
+  EXPECT_NO_THROW(ScalarLogger::read(dir + "/scalars.csv"));
+  EXPECT_EQ(read_file(dir + "/config.yaml").rfind("# blas: ", 0), 0u);
+  for (const auto& e : fs::directory_iterator(dir))
+    EXPECT_EQ(e.path().filename().string().find(".tmp."), std::string::npos) << e.path();
+  fs::remove_all(dir);
+  // hlt_perceive stops at the first failed row instead of reporting frames it did not save.
+  const std::string csv = (mount / "states.csv").string();
+  r = run(std::string(HLT_PERCEIVE_BIN) + " --input synthetic:300 --quiet --tags " +
+          std::string(HLT_SOURCE_DIR) + "/experiments/configs/perception/sawyer_tags.yaml --csv " + csv);
+  EXPECT_NE(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("(disk full?)"), std::string::npos) << r.output;
+  ::system(("umount " + mount.string()).c_str());
+}
+
 // Rows of a log without wall-clock values: what must be identical between two runs of the same seed.
 std::vector<std::string> comparable_rows(const std::string& path) {
   std::vector<std::string> rows;

@@ -179,6 +179,14 @@ TEST(CameraModel, RejectsBadExtrinsicsAndParameters) {
             std::string::npos);
   EXPECT_NE(error_of([&] { c.project(Eigen::Vector3d(0, 0, -1)); }).find("not in front of the camera"),
             std::string::npos);
+  // Intrinsics no lens has (libapriltag would abort on them).
+  EXPECT_NE(error_of([] { CameraModel(640, 480, 1e9, 600, 320, 240); }).find("focal lengths"),
+            std::string::npos);
+  EXPECT_NE(error_of([] { CameraModel(640, 480, 600, 600, 1e6, 240); }).find("far outside the 640x480 image"),
+            std::string::npos);
+  EXPECT_NE(error_of([] { CameraModel(640, 480, 600, 600, 320, -1000); }).find("far outside"),
+            std::string::npos);
+  CameraModel(640, 480, 60000, 60000, 330, 250);  // a long telephoto lens is fine
 }
 
 }  // namespace
