@@ -18,6 +18,7 @@
 #include "envs/perception/frame_source.h"
 #include "envs/perception/synthetic_camera.h"
 #include "envs/perception/tabletop_scene.h"
+#include "experiments/cli_checks.h"
 #include "hlt/util/error.h"
 #include "hlt/util/files.h"
 #include "hlt/util/main_guard.h"
@@ -68,6 +69,7 @@ int run_tool(int argc, char** argv) {
   app.add_flag("--rational", rational, "8-coefficient rational model (wide-angle lenses)");
   app.add_option("--render-demo", demo, "write synthetic views of a known camera into this folder and exit");
   CLI11_PARSE(app, argc, argv);
+  hlt::check_finite_flags(app);
   try {
     const cv::Size inner(cols, rows);
     if (!demo.empty()) {

@@ -29,6 +29,7 @@
 #include "envs/perception/pose_math.h"
 #include "envs/perception/synthetic_camera.h"
 #include "envs/perception/tabletop_scene.h"
+#include "experiments/cli_checks.h"
 #include "hlt/util/error.h"
 #include "hlt/util/files.h"
 #include "hlt/util/main_guard.h"
@@ -148,19 +149,7 @@ int run_tool(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   app.add_flag("--quiet", quiet, "no progress line every 25 frames");
   CLI11_PARSE(app, argc, argv);
-  // CLI11's range validators let NaN through (every comparison with it is false).
-  for (const auto* opt : app.get_options()) {
-    if (opt->count() == 0) continue;
-    for (const std::string& v : opt->results()) {
-      char* end = nullptr;
-      const double x = std::strtod(v.c_str(), &end);
-      if (end != v.c_str() && *end == '\0' && !std::isfinite(x)) {
-        std::fprintf(stderr, "hlt_perceive: error: %s must be a finite number, got '%s'\n",
-                     opt->get_name().c_str(), v.c_str());
-        return 2;
-      }
-    }
-  }
+  hlt::check_finite_flags(app);
 
   try {
     o.detector.refine_corners = !no_refine;

@@ -20,6 +20,7 @@
 #include "envs/perception/synthetic_camera.h"
 #include "envs/perception/tabletop_scene.h"
 #include "envs/perception/tag_detector.h"
+#include "experiments/cli_checks.h"
 #include "hlt/util/error.h"
 #include "hlt/util/main_guard.h"
 
@@ -202,6 +203,7 @@ int run_tool(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::Range(1.0, 8.0));
   CLI11_PARSE(app, argc, argv);
+  hlt::check_finite_flags(app);
   try {
     std::vector<Condition> conditions;
     auto add = [&](std::string name, ImageEffects e, CameraModel cam = CameraModel(), bool refine = true) {

@@ -25,6 +25,7 @@
 #include "envs/env.h"
 #include "envs/registry.h"
 #include "envs/rollout.h"
+#include "experiments/cli_checks.h"
 #include "hlt/util/error.h"
 #include "hlt/util/files.h"
 #include "hlt/util/main_guard.h"
@@ -291,6 +292,7 @@ int run_tool(int argc, char** argv) {
   app.add_option("--width", o.width, "Frame width in pixels")->capture_default_str();
   app.add_option("--height", o.height, "Frame height in pixels")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
+  hlt::check_finite_flags(app);
   if (list) {
     for (const auto& n : hlt::env_names())
       std::cout << n << "\n";

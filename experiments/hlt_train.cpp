@@ -16,6 +16,7 @@
 
 #include "agents/train_config.h"
 #include "agents/trainer.h"
+#include "experiments/cli_checks.h"
 #include "hlt/util/blas_kernel.h"
 #include "hlt/util/error.h"
 #include "hlt/util/files.h"
@@ -68,6 +69,7 @@ int run(int argc, char** argv) {
                "no progress bar (it is also off when stderr is not a terminal)");
   app.add_option("overrides", overrides, "key=value config overrides, e.g. planner.samples=60");
   CLI11_PARSE(app, argc, argv);
+  check_finite_flags(app);
 
   if (list) {
     fmt::print("config keys (set in a YAML file or as key=value):\n{}", make_train_config().describe());

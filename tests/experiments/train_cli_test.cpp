@@ -82,6 +82,30 @@ TEST(TrainCli, RejectsBadInputWithClearMessages) {
   r = run(kTrain + " --config " + bad_yaml + " --out " + fresh_dir("bad_yaml_run"));
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("malformed YAML"), std::string::npos) << r.output;
+  // A self-referential alias, a directory as the config file.
+  write_file_atomic(bad_yaml, "train: &t\n  x: *t\n");
+  r = run(kTrain + " --config " + bad_yaml + " --out " + fresh_dir("alias_run"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("an alias that refers to itself?"), std::string::npos) << r.output;
+  r = run(kTrain + " --config " + fs::temp_directory_path().string() + " --out " + fresh_dir("dir_config"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("it is a directory"), std::string::npos) << r.output;
+  // --env wins over the file's env (flags come after --config).
+  const std::string acrobot_yaml = fresh_dir("acrobot.yaml");
+  write_file_atomic(acrobot_yaml, "env: acrobot\n");
+  const std::string precedence = fresh_dir("precedence");
+  r = run(kTrain + kSmall + " --method sac --config " + acrobot_yaml + " --steps 5 eval.every=0 --out " +
+          precedence);
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(read_file(precedence + "/config.yaml").find("env: \"pendulum\""), std::string::npos);
+  // Replay memory that cannot fit is refused before anything is allocated.
+  r = run(kTrain + " --env ant train.replay_capacity=100000000 --out " + fresh_dir("too_big"));
+  if (r.code == 2) EXPECT_NE(r.output.find("lower train.replay_capacity"), std::string::npos) << r.output;
+  // Non-finite numbers in numeric flags of the perception tools.
+  r = run(std::string(HLT_PERCEIVE_BIN) + " --input synthetic:3 --fps nan --tags " +
+          std::string(HLT_SOURCE_DIR) + "/experiments/configs/perception/sawyer_tags.yaml");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("--fps must be a finite number, got 'nan'"), std::string::npos) << r.output;
 }
 
 TEST(TrainCli, NeverOverwritesARunAndReportsCorruptCheckpoints) {
