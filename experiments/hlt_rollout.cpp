@@ -21,6 +21,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
+#include "agents/expert_policy.h"
 #include "agents/saved_policy.h"
 #include "envs/env.h"
 #include "envs/registry.h"
@@ -48,6 +49,14 @@ std::unique_ptr<PolicySource> make_policy(const std::string& spec, std::optional
     check(saved->env == env.name(), "--policy {}: the policy was trained on {}, not {}", spec, saved->env,
           env.name());
     return std::move(saved->source);
+  }
+  if (spec.rfind(ExpertPolicy::kPrefix, 0) == 0) {
+    auto expert = std::make_unique<ExpertPolicy>(spec.substr(std::string(ExpertPolicy::kPrefix).size()));
+    check(expert->observation_dim() == env.observation_dim() && expert->action_dim() == env.action_dim(),
+          "--policy {}: the expert maps {} observations to {} actions, {} has {} and {}", spec,
+          expert->observation_dim(), expert->action_dim(), env.name(), env.observation_dim(),
+          env.action_dim());
+    return expert;
   }
   return make_simple_policy(spec, env.action_dim(), seed);
 }
@@ -276,7 +285,7 @@ int run_tool(int argc, char** argv) {
   bool list = false;
   app.add_flag("--list", list, "List the registered environments and exit");
   app.add_option("--env", o.env, "Environment name (see --list)");
-  app.add_option("--policy", o.policy, "zero | random | constant:V[,V2,...] | checkpoint:PATH")
+  app.add_option("--policy", o.policy, "zero | random | constant:V[,V2,...] | checkpoint:PATH | expert:PATH")
       ->capture_default_str();
   app.add_option("--episodes", o.episodes, "Number of episodes")->capture_default_str();
   app.add_option("--seed", o.seed, "Seed of the first reset (and of the random policy)")
