@@ -82,13 +82,14 @@ std::unique_ptr<PolicySource> make_simple_policy(const std::string& spec, int ac
 
 EpisodeStats run_episode(Env& env, PolicySource& policy, std::optional<uint64_t> seed,
                          const std::function<void(const Transition&)>& on_step,
-                         const std::function<void()>& on_reset) {
+                         const std::function<void()>& on_reset, int max_steps) {
   Eigen::VectorXd obs = env.reset(seed);
   if (on_reset) on_reset();
   EpisodeStats stats;
   for (;;) {
     const Eigen::VectorXd action = policy.act(obs);
-    const StepResult r = env.step(action);
+    StepResult r = env.step(action);
+    if (max_steps > 0 && stats.length + 1 >= max_steps && !r.terminated) r.truncated = true;
     if (on_step) on_step(Transition{stats.length, obs, action, r});
     stats.episode_return += r.reward;
     ++stats.length;

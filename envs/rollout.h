@@ -43,11 +43,12 @@ struct Transition {
   const StepResult& result;
 };
 
-// Resets `env` (with `seed` if given), then steps it with `policy` until the episode ends. `on_step`, if set,
-// sees every transition; `on_reset`, if set, is called after the reset (e.g. to render the first frame).
+// Resets `env` (with `seed` if given), then steps it with `policy` until the episode ends, or is cut after
+// `max_steps` steps if that is positive (then the last step counts as truncated). `on_step`, if set, sees
+// every transition; `on_reset`, if set, is called after the reset (e.g. to render the first frame).
 EpisodeStats run_episode(Env& env, PolicySource& policy, std::optional<uint64_t> seed,
                          const std::function<void(const Transition&)>& on_step = {},
-                         const std::function<void()>& on_reset = {});
+                         const std::function<void()>& on_reset = {}, int max_steps = 0);
 
 struct ReturnSummary {
   double mean_return = 0.0;

@@ -21,6 +21,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
+#include "agents/demonstrations.h"
 #include "agents/expert_policy.h"
 #include "agents/saved_policy.h"
 #include "envs/env.h"
@@ -177,6 +178,8 @@ struct Options {
   int record_episodes = 1;
   int width = 480;
   int height = 360;
+  std::string demos;  // record every episode as demonstrations (.hltd)
+  int max_steps = 0;  // cut episodes after this many steps (0: the environment's limit)
 };
 
 int run(Options o, bool frame_skip_given) {
@@ -201,7 +204,7 @@ int run(Options o, bool frame_skip_given) {
   check(o.strip.empty() || extension(o.strip) == "png", "--strip {}: use a .png file name", o.strip);
   check(o.strip_frames >= 1 && o.record_episodes >= 0,
         "--strip-frames must be >= 1 and --record-episodes >= 0");
-  for (const std::string* out : {&o.csv, &o.video, &o.strip}) {
+  for (const std::string* out : {&o.csv, &o.video, &o.strip, &o.demos}) {
     const auto slash = out->find_last_of('/');
     if (!out->empty() && slash != std::string::npos && slash > 0)
       ensure_writable_directory(out->substr(0, slash));
@@ -221,10 +224,15 @@ int run(Options o, bool frame_skip_given) {
       csv << ",action_" << i;
     csv << ",reward,done,truncated\n";
   }
+  check(o.max_steps >= 0, "--max-steps must be >= 0, got {}", o.max_steps);
+  std::optional<Demonstrations> demos;
+  if (!o.demos.empty())
+    demos.emplace(o.env, env->observation_dim(), env->action_dim(), o.frame_skip, policy->describe());
   FrameRecorder recorder(o.video, std::max(1.0, std::round(1.0 / env->dt())), o.strip_frames);
   std::vector<EpisodeStats> episodes;
   for (int ep = 0; ep < o.episodes; ++ep) {
     const bool record = recording && ep < o.record_episodes;
+    std::vector<DemoStep> demo_steps;
     auto on_reset = [&]() {
       if (record) recorder.add(env->render(o.width, o.height));
     };
@@ -239,10 +247,15 @@ int run(Options o, bool frame_skip_given) {
                            t.result.truncated ? 1 : 0);
       }
       if (record) recorder.add(env->render(o.width, o.height));
+      if (demos)
+        demo_steps.push_back({t.observation, t.action, t.result.observation, t.result.reward,
+                              t.result.terminated, t.result.truncated});
     };
     // The first episode starts from the seed; later ones continue the environment's generator.
-    const EpisodeStats s = run_episode(
-        *env, *policy, ep == 0 ? std::optional<uint64_t>(o.seed) : std::nullopt, on_step, on_reset);
+    const EpisodeStats s =
+        run_episode(*env, *policy, ep == 0 ? std::optional<uint64_t>(o.seed) : std::nullopt, on_step,
+                    on_reset, o.max_steps);
+    if (demos) demos->add_episode(std::move(demo_steps));
     std::string note = s.terminated ? " (terminated)" : "";
     if (!s.failure.empty()) note = " (simulation failed: " + s.failure + ")";
     fmt::print("episode {}: return {:.1f} length {}{}\n", ep, s.episode_return, s.length, note);
@@ -252,6 +265,11 @@ int run(Options o, bool frame_skip_given) {
   fmt::print("mean return {:.1f} std {:.1f} mean length {:.1f} over {} episodes\n", sum.mean_return,
              sum.std_return, sum.mean_length, episodes.size());
 
+  if (demos) {
+    demos->save(o.demos);
+    fmt::print("wrote {} ({} episodes, {} transitions)\n", o.demos, demos->episodes().size(),
+               demos->transitions());
+  }
   if (!o.csv.empty()) {
     write_file_atomic(o.csv, csv.str());
     fmt::print("wrote {}\n", o.csv);
@@ -297,6 +315,9 @@ int run_tool(int argc, char** argv) {
   app.add_option("--strip", o.strip, "Write evenly spaced frames of the recorded episodes as one PNG");
   app.add_option("--strip-frames", o.strip_frames, "Frames in the image strip")->capture_default_str();
   app.add_option("--record-episodes", o.record_episodes, "How many episodes, from the first, to record")
+      ->capture_default_str();
+  app.add_option("--demos", o.demos, "Record every episode as demonstrations to this file (.hltd)");
+  app.add_option("--max-steps", o.max_steps, "Cut each episode after this many steps (0: the env's limit)")
       ->capture_default_str();
   app.add_option("--width", o.width, "Frame width in pixels")->capture_default_str();
   app.add_option("--height", o.height, "Frame height in pixels")->capture_default_str();
