@@ -14,8 +14,11 @@
 #include <yaml-cpp/yaml.h>
 #include <CLI/CLI.hpp>
 
+#include <fmt/ranges.h>
+#include "agents/methods.h"
 #include "agents/train_config.h"
 #include "agents/trainer.h"
+#include "envs/registry.h"
 #include "experiments/cli_checks.h"
 #include "hlt/util/blas_kernel.h"
 #include "hlt/util/error.h"
@@ -56,9 +59,10 @@ int run(int argc, char** argv) {
   std::optional<int64_t> seed, steps;
   std::vector<std::string> overrides;
   bool list = false, no_progress = false;
-  app.add_option("--env", env, "environment name (default cartpole_swingup)");
-  app.add_option("--method", method,
-                 "sac | hybrid-stochastic | hybrid-deterministic | mppi | mpc-deterministic");
+  app.add_option(
+      "--env", env,
+      fmt::format("{} (default {})", fmt::join(env_names(), " | "), make_train_config().get_string("env")));
+  app.add_option("--method", method, fmt::format("{}", fmt::join(method_names(), " | ")));
   app.add_option("--seed", seed, "run seed");
   app.add_option("--steps", steps, "agent steps to train for (with --resume: the new total)");
   app.add_option("--out", out, "run directory (default runs/<env>/<method>/seed<seed>)");
