@@ -8,6 +8,7 @@
 #include "hlt/util/checksum.h"
 #include "hlt/util/error.h"
 #include "hlt/util/files.h"
+#include "support/error_of.h"
 
 namespace hlt {
 namespace {
@@ -34,14 +35,7 @@ Demonstrations sample() {
   return d;
 }
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using testing::error_of;
 
 TEST(Demonstrations, RoundTripIsExact) {
   const std::string path = temp("hlt_demos_rt.hltd");

@@ -11,6 +11,7 @@
 #include "hlt/nn/gaussian_policy.h"
 #include "hlt/util/error.h"
 #include "hlt/util/files.h"
+#include "support/error_of.h"
 
 namespace hlt {
 namespace {
@@ -19,14 +20,7 @@ std::string temp(const std::string& name) {
   return (std::filesystem::temp_directory_path() / name).string();
 }
 
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using testing::error_of;
 
 TEST(Checkpoint, ModulesOptimizersAndValuesRoundTrip) {
   torch::manual_seed(0);

@@ -58,6 +58,26 @@ const std::string kSmall =
     "model.reward_hidden=32"
     " sac.q_hidden=[32,32] planner.samples=8 eval.episodes=1 --no-progress";
 
+// Starts hlt_train with `args` in the background, its output discarded; returns its pid (-1 on failure).
+pid_t spawn_train(const std::string& args) {
+  std::vector<std::string> words{kTrain};
+  std::istringstream split(args);
+  for (std::string w; split >> w;)
+    words.push_back(w);
+  std::vector<char*> argv;
+  for (auto& w : words)
+    argv.push_back(w.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
+  posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
+  pid_t pid = 0;
+  const int rc = ::posix_spawn(&pid, kTrain.c_str(), &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  return rc == 0 ? pid : -1;
+}
+
 TEST(TrainCli, RejectsBadInputWithClearMessages) {
   Result r = run(kTrain + " --env moonwalk --steps 10 --out " + fresh_dir("bad_env"));
   EXPECT_EQ(r.code, 2);
@@ -197,21 +217,8 @@ TEST(TrainCli, DivergedRunStopsWithAnErrorAndNoFinalWeights) {
 
 TEST(TrainCli, SecondWriterOfARunDirectoryIsRefused) {
   const std::string dir = fresh_dir("locked");
-  std::vector<std::string> words{kTrain};
-  std::istringstream split(kSmall + " --method sac --steps 100000 eval.every=0 --out " + dir);
-  for (std::string w; split >> w;)
-    words.push_back(w);
-  std::vector<char*> argv;
-  for (auto& w : words)
-    argv.push_back(w.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
-  posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
-  pid_t pid = 0;
-  ASSERT_EQ(::posix_spawn(&pid, kTrain.c_str(), &actions, nullptr, argv.data(), environ), 0);
-  posix_spawn_file_actions_destroy(&actions);
+  const pid_t pid = spawn_train(kSmall + " --method sac --steps 100000 eval.every=0 --out " + dir);
+  ASSERT_GT(pid, 0);
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
   while (!fs::exists(dir + "/scalars.csv") && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
@@ -301,21 +308,8 @@ TEST(TrainCli, KilledRunResumesToTheSameLog) {
   ASSERT_EQ(r.code, 0) << r.output;
 
   // Start the same run, wait for its first checkpoint and a little more, then kill -9.
-  std::vector<std::string> words{kTrain};
-  std::istringstream split(args + " --out " + killed);
-  for (std::string w; split >> w;)
-    words.push_back(w);
-  std::vector<char*> argv;
-  for (auto& w : words)
-    argv.push_back(w.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, "/dev/null", O_WRONLY, 0);
-  posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, "/dev/null", O_WRONLY, 0);
-  pid_t pid = 0;
-  ASSERT_EQ(::posix_spawn(&pid, kTrain.c_str(), &actions, nullptr, argv.data(), environ), 0);
-  posix_spawn_file_actions_destroy(&actions);
+  const pid_t pid = spawn_train(args + " --out " + killed);
+  ASSERT_GT(pid, 0);
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
   while (!fs::exists(killed + "/checkpoint.pt") && std::chrono::steady_clock::now() < deadline) {
     std::this_thread::sleep_for(std::chrono::milliseconds(5));

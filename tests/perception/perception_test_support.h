@@ -14,6 +14,7 @@
 #include "envs/perception/tag_config.h"
 #include "envs/perception/tag_family.h"
 #include "hlt/util/error.h"
+#include "support/error_of.h"
 
 namespace hlt::test {
 
@@ -31,15 +32,7 @@ inline TagConfig sawyer_tags() {
   return TagConfig::load(config_path("sawyer_tags.yaml"));
 }
 
-// The message of the hlt::Error `f` throws, or "" if it throws none.
-inline std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using testing::error_of;
 
 // A tag seen from `distance` metres, turned `yaw` about its own normal and tilted `tilt_deg` about its x
 // axis, offset from the optical axis by (dx, dy) metres. Camera frame: the tag's z axis faces the camera.

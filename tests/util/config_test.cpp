@@ -7,6 +7,7 @@
 #include "hlt/util/checksum.h"
 #include "hlt/util/error.h"
 #include "hlt/util/files.h"
+#include "support/error_of.h"
 
 namespace hlt {
 namespace {
@@ -23,12 +24,7 @@ Config make_config() {
 }
 
 std::string message_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
+  return testing::error_of(f);
 }
 
 TEST(Config, DefaultsAndYamlAndOverrides) {
