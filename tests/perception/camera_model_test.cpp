@@ -88,7 +88,7 @@ TEST(CameraModel, ProjectionAndViewingRayAreInverse) {
 TEST(CameraModel, SaveAndLoadRoundTripInOpenCvFormat) {
   CameraModel c(640, 480, 612.5, 608.25, 318.75, 241.5, {-0.1, 0.02, 0.001, -0.002, 0.003});
   c.set_world_from_camera(pose_from_xyz_rpy(0.2, -0.4, 0.6, -2.2, 0.05, 0.1));
-  const std::string path = testing::TempDir() + "/hlt_camera_roundtrip.yaml";
+  const std::string path = ::testing::TempDir() + "/hlt_camera_roundtrip.yaml";
   c.save(path, 0.123);
   const std::string text = read_file(path);
   EXPECT_EQ(text.rfind("%YAML:1.0", 0), 0u);

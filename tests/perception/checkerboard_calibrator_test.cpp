@@ -50,7 +50,7 @@ TEST(CheckerboardCalibrator, RecoversKnownIntrinsicsWithinOnePercent) {
   RecordProperty("fx_error", std::to_string(r.camera.fx() - truth.fx()));
   RecordProperty("rms", std::to_string(r.rms));
   // The result is a loadable calibration file.
-  const std::string path = testing::TempDir() + "/hlt_calibration_test.yaml";
+  const std::string path = ::testing::TempDir() + "/hlt_calibration_test.yaml";
   r.camera.save(path, r.rms);
   EXPECT_DOUBLE_EQ(CameraModel::load(path).fx(), r.camera.fx());
 }

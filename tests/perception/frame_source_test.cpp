@@ -17,7 +17,7 @@ namespace fs = std::filesystem;
 using test::error_of;
 
 std::string fresh_dir(const std::string& name) {
-  const fs::path p = fs::path(testing::TempDir()) / name;
+  const fs::path p = fs::path(::testing::TempDir()) / name;
   fs::remove_all(p);
   fs::create_directories(p);
   return p.string();
