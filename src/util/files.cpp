@@ -4,7 +4,9 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -46,10 +48,28 @@ void write_atomic_with(const std::string& path, const std::function<void(const s
   }
 }
 
+// Fault injection for the crash tests: HLT_TEST_KILL_WRITING=NAME[:N] makes the process SIGKILL itself
+// halfway through its N-th (default first) atomic write of a file named NAME, as a power cut or kill -9
+// would at the worst moment.
+void maybe_die_writing(const std::string& path, std::ofstream& out, const std::string& content) {
+  static const char* spec = std::getenv("HLT_TEST_KILL_WRITING");
+  if (spec == nullptr) return;
+  static int writes = 0;
+  const std::string s(spec);
+  const size_t colon = s.find(':');
+  const std::string name = s.substr(0, colon);
+  const int nth = colon == std::string::npos ? 1 : std::atoi(s.c_str() + colon + 1);
+  if (fs::path(path).filename() != name || ++writes != nth) return;
+  out.write(content.data(), static_cast<std::streamsize>(content.size() / 2));
+  out.flush();
+  std::raise(SIGKILL);
+}
+
 void write_file_atomic(const std::string& path, const std::string& content) {
   write_atomic_with(path, [&](const std::string& tmp) {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     check(out.good(), "cannot write {}: {}", tmp, std::strerror(errno));
+    maybe_die_writing(path, out, content);
     out << content;
     out.flush();
     check(out.good(), "cannot write {}: {} (the previous version, if any, is kept)", path,

@@ -300,6 +300,26 @@ TEST(TrainCli, ParallelUpdatesGiveTheSameNumbers) {
   EXPECT_EQ(read_file(one + "/config.yaml").rfind("# blas: ", 0), 0u);
 }
 
+TEST(TrainCli, KilledWhileWritingCheckpointOrFinalResumesToTheSameLog) {
+  const std::string args = kSmall + " --method sac --steps 200 checkpoint.every=50 eval.every=50";
+  const std::string straight = fresh_dir("write_straight");
+  Result r = run(kTrain + args + " --out " + straight);
+  ASSERT_EQ(r.code, 0) << r.output;
+  const auto full = comparable_rows(straight + "/scalars.csv");
+  for (const std::string kill : {"checkpoint.pt:2", "final.pt"}) {
+    const std::string dir = fresh_dir("write_killed_" + kill.substr(0, 5));
+    r = run("HLT_TEST_KILL_WRITING=" + kill + " " + kTrain + args + " --out " + dir);
+    EXPECT_EQ(r.code, 128 + SIGKILL) << kill << " was not killed: " << r.output;  // as sh reports it
+    EXPECT_FALSE(fs::exists(dir + "/final.pt")) << kill;
+    r = run(kTrain + " --resume " + dir + " --no-progress");
+    ASSERT_EQ(r.code, 0) << kill << ": " << r.output;
+    EXPECT_EQ(comparable_rows(dir + "/scalars.csv"), full) << kill;
+    EXPECT_TRUE(fs::exists(dir + "/final.pt")) << kill;
+    for (const auto& e : fs::directory_iterator(dir))
+      EXPECT_EQ(e.path().filename().string().find(".tmp."), std::string::npos) << e.path();
+  }
+}
+
 TEST(TrainCli, KilledRunResumesToTheSameLog) {
   const std::string args =
       kSmall + " --method hybrid-stochastic --steps 600 checkpoint.every=100 eval.every=100";
