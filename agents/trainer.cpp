@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "agents/controller_policy.h"
 #include "agents/methods.h"
 #include "agents/model_learner.h"
 #include "agents/sac.h"
@@ -37,15 +38,6 @@ double seconds_since(Clock::time_point t0) {
 
 // Seed streams derived from the run seed (see derive_seed).
 enum Stream : uint64_t { kReplay = 1, kTrainEpisode = 2, kEvalEpisode = 3, kSacNoise = 4 };
-
-at::Tensor to_tensor(const Eigen::VectorXd& v) {
-  return torch::from_blob(const_cast<double*>(v.data()), {v.size()}, torch::kFloat64).to(torch::kFloat32);
-}
-
-Eigen::VectorXd to_eigen(const at::Tensor& t) {
-  const at::Tensor d = t.to(torch::kFloat64).contiguous();
-  return Eigen::Map<const Eigen::VectorXd>(d.data_ptr<double>(), d.numel());
-}
 
 // The header of config.yaml: what the run's numbers depend on besides its settings. The same seed gives
 // the same numbers only with the same BLAS kernel.
@@ -161,10 +153,14 @@ struct Trainer::Impl {
     if (config.get_int("train.threads") > 1 && sac && learner) worker = std::make_unique<WorkerThread>();
   }
 
-  at::Tensor act(Controller& c, const Eigen::VectorXd& state) {
-    // Exploration decays with agent steps (calls to the environment's step), as in the authors' code.
+  // Exploration decays with agent steps (calls to the environment's step), as in the authors' code.
+  void tell_interactions(Controller& c) const {
     if (auto* det = dynamic_cast<DeterministicHybrid*>(&c)) det->set_interactions(agent_steps);
-    return c.act(to_tensor(state));
+  }
+
+  at::Tensor act(Controller& c, const Eigen::VectorXd& state) {
+    tell_interactions(c);
+    return c.act(observation_tensor(state));
   }
 
   void begin_episode() {
@@ -182,7 +178,7 @@ struct Trainer::Impl {
   void step() {
     if (need_reset) begin_episode();
     auto t0 = Clock::now();
-    const Eigen::VectorXd a = to_eigen(act(*controller, obs));
+    const Eigen::VectorXd a = action_vector(act(*controller, obs));
     ep_act_seconds += seconds_since(t0);
     const double mig = controller->diagnostics().mode_insertion_gradient;
     if (std::isfinite(mig)) ep_mig.add(mig);
@@ -203,7 +199,7 @@ struct Trainer::Impl {
     } else if (res.truncated) {
       // Cut by the time limit: s' is not terminal, so its next action is the controller's choice there.
       t0 = Clock::now();
-      const Eigen::VectorXd a2 = to_eigen(act(*controller, res.observation));
+      const Eigen::VectorXd a2 = action_vector(act(*controller, res.observation));
       ep_act_seconds += seconds_since(t0);
       buffer->add(obs.data(), a.data(), res.reward, res.observation.data(), a2.data(), false);
     } else {
@@ -331,29 +327,19 @@ struct Trainer::Impl {
   void evaluate() {
     const int64_t episodes_per_eval = config.get_int("eval.episodes");
     for (auto& [label, ctrl] : evaluators) {
-      std::vector<double> returns;
+      ControllerPolicy policy(*ctrl, [this](Controller& c) { tell_interactions(c); });
+      std::vector<EpisodeStats> episodes;
       for (int64_t e = 0; e < episodes_per_eval; ++e) {
         // The same start states at every evaluation, so curves compare like with like.
-        Eigen::VectorXd s = eval_env->reset(derive_seed(seed, kEvalEpisode) ^ static_cast<uint64_t>(e));
-        ctrl->reset();
-        double total = 0;
-        while (true) {
-          const StepResult r = eval_env->step(to_eigen(act(*ctrl, s)));
-          total += r.reward;
-          s = r.observation;
-          if (r.done()) break;
-        }
-        returns.push_back(total);
+        episodes.push_back(run_episode(*eval_env, policy,
+                                       derive_seed(seed, kEvalEpisode) ^ static_cast<uint64_t>(e), {},
+                                       [&] { policy.reset(); }));
       }
-      double mean = 0, var = 0;
-      for (double x : returns)
-        mean += x / returns.size();
-      for (double x : returns)
-        var += (x - mean) * (x - mean) / returns.size();
+      const ReturnSummary summary = summarize(episodes);
       const std::string prefix = label.empty() ? "eval/" : "eval/" + label + "_";
-      log->log(env_steps, prefix + "return_mean", mean);
-      log->log(env_steps, prefix + "return_std", std::sqrt(var));
-      if (label.empty()) last_eval = mean;
+      log->log(env_steps, prefix + "return_mean", summary.mean_return);
+      log->log(env_steps, prefix + "return_std", summary.std_return);
+      if (label.empty()) last_eval = summary.mean_return;
     }
     ++evaluations;
   }
