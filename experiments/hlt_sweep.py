@@ -620,6 +620,8 @@ def cmd_submit(args):
     out = os.path.abspath(args.out)
     runs = sweep.runs(out)
     train = train_binary(args)
+    if args.wait and not args.poll > 0:
+        raise SweepError("--poll must be positive")
     if not shutil.which("sbatch"):
         raise SweepError("sbatch not found: submit needs a Slurm client (Debian: slurm-client)")
     if args.all:
@@ -653,35 +655,39 @@ def cmd_submit(args):
                         ("--cpus-per-task", args.cpus_per_task), ("--mem", args.mem)):
         if value is not None:
             cmd.append("%s=%s" % (flag, value))
-    if args.wait:
-        cmd.append("--wait")
     cmd.append(script)
-    if args.wait:
-        # sbatch --wait prints the job id first, then blocks until every task ended.
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True)
-        line = proc.stdout.readline().strip()
-        job = line.split(";")[0]
-        if job:
-            note_job(slurm_dir, job, indices, stamp)
-            print("%s: submitted job %s: %d task(s) (array %s), logs in %s/%s_<index>.out; waiting" % (
-                PROG, job, len(indices), array_spec(indices), slurm_dir, job), flush=True)
-        rest = proc.stdout.read()
-        code = proc.wait()
-        if code != 0 and not job:
-            print(rest, end="", file=sys.stderr)
-            raise SweepError("sbatch failed (exit %d)" % code)
-        status_lines, counts = status_report(sweep, out, runs)
-        print("\n".join(status_lines))
-        unfinished = len(runs) - counts.get("done", 0)
-        return 0 if unfinished == 0 else 1
     proc = subprocess.run(cmd, capture_output=True, text=True)
     if proc.returncode != 0:
         raise SweepError("sbatch failed (exit %d): %s" % (proc.returncode, proc.stderr.strip()))
     job = proc.stdout.strip().split(";")[0]
     note_job(slurm_dir, job, indices, stamp)
     print("%s: submitted job %s: %d task(s) (array %s), logs in %s/%s_<index>.out" % (
-        PROG, job, len(indices), array_spec(indices), slurm_dir, job))
-    return 0
+        PROG, job, len(indices), array_spec(indices), slurm_dir, job), flush=True)
+    if not args.wait:
+        return 0
+    # Requeued tasks go back to pending and stay part of the job, so waiting ends when no task is active.
+    while active_tasks(job):
+        time.sleep(args.poll)
+    lines, counts = status_report(sweep, out, runs)
+    print("\n".join(lines))
+    return 0 if counts.get("done", 0) == len(runs) else 1
+
+
+ACTIVE = {"PENDING", "RUNNING", "CONFIGURING", "COMPLETING", "REQUEUED", "REQUEUE_HOLD", "REQUEUE_FED",
+          "RESIZING", "SUSPENDED", "SIGNALING", "STAGE_OUT", "STOPPED", "RESV_DEL_HOLD"}
+
+
+def active_tasks(job):
+    """How many of the job's tasks are not finished (a failing squeue counts as 'still active' for a while:
+    a busy controller may time out)."""
+    for attempt in range(10):
+        proc = subprocess.run(["squeue", "-h", "-r", "-j", job, "-o", "%T"], capture_output=True, text=True)
+        if proc.returncode == 0:
+            return sum(1 for state in proc.stdout.split() if state in ACTIVE)
+        if "Invalid job id" in proc.stderr:
+            return 0  # gone from the queue: finished long ago
+        time.sleep(min(30, 2 ** attempt))
+    raise SweepError("squeue keeps failing: %s" % proc.stderr.strip())
 
 
 def shq(s):
@@ -739,7 +745,9 @@ def main(argv=None):
     p.add_argument("--time", help="time limit per task, e.g. 4:00:00")
     p.add_argument("--cpus-per-task", type=int)
     p.add_argument("--mem", help="memory per task, e.g. 4G")
-    p.add_argument("--wait", action="store_true", help="wait until every task ended, then print the status")
+    p.add_argument("--wait", action="store_true", help="wait until every task ended, then print the status "
+                                                       "(exit 1 unless every run is done)")
+    p.add_argument("--poll", type=float, default=10.0, help="seconds between queue checks with --wait")
     p.add_argument("--all", action="store_true", help="a task for every run, done or not (default: only runs "
                                                       "that are not done or running)")
     p = sub.add_parser("status", help="list every run with its state and progress")
@@ -755,6 +763,9 @@ def main(argv=None):
     except SweepError as e:
         print("%s: error: %s" % (PROG, e), file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # submit --wait or status: nothing of ours runs (a submitted job stays queued)
+        print("%s: interrupted" % PROG, file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

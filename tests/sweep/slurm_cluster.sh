@@ -70,6 +70,8 @@ start_cluster() {
   mkdir -p "$dir/munge" "$dir/state" "$dir/spool" "$dir/log" "$dir/run"
   chown munge:munge "$dir/munge"
   chmod 0755 "$dir/munge"
+  setpriv --reuid=munge --regid=munge --init-groups test -x "$dir/munge" ||
+    fail "the user munge cannot reach $dir (a directory above it is not searchable by others)"
   local key=$dir/munge/munge.key socket=$dir/munge/munge.socket
   rm -f "$key" "$socket"
   /usr/sbin/mungekey --create --keyfile="$key" >"$dir/log/mungekey.out" 2>&1 ||
@@ -90,7 +92,8 @@ start_cluster() {
   done
   if [ ! -S "$socket" ]; then
     local why
-    why=$(cat "$dir/log/munged.out" "$dir/munge/munged.log" 2>/dev/null | tail -n 3)
+    why=$(cat "$dir/log/munged.out" "$dir/munge/munged.log" 2>/dev/null | grep -m 3 -E 'Error|Fatal' ||
+      tail -n 3 "$dir/log/munged.out")
     stop_cluster
     fail "munged did not start: $why"
   fi
