@@ -145,7 +145,7 @@ EOF
   # -c: no state from an earlier cluster in the same directory; -D: foreground, so $! is the daemon.
   slurmctld -D -c -f "$SLURM_CONF" </dev/null >"$dir/log/slurmctld.out" 2>&1 &
   echo $! >"$dir/run/slurmctld.pid"
-  slurmd -D -f "$SLURM_CONF" </dev/null >"$dir/log/slurmd.out" 2>&1 &
+  slurmd -D -N "$host" -f "$SLURM_CONF" </dev/null >"$dir/log/slurmd.out" 2>&1 &
   echo $! >"$dir/run/slurmd.pid"
 
   local state=""

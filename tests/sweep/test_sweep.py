@@ -128,6 +128,13 @@ def local_engine_result():
     out = os.path.join(WORK, "local")
     sweep = write(os.path.join(WORK, "small.yaml"), SMALL_SWEEP)
     try:
+        # Seed 2 was killed the instant it started, before its first checkpoint (its log still empty): the
+        # engine starts it over.
+        d2 = run_dirs(out)[2]
+        os.makedirs(d2)
+        write(os.path.join(d2, "config.yaml"), "checkpoint:\n  every: 100\ntrain:\n  agent_steps: 400\n")
+        write(os.path.join(d2, "scalars.csv"), "")
+        write(os.path.join(d2, ".lock"), "1\n")
         proc = subprocess.Popen(sweep_cmd("run", sweep, "--out", out, "--jobs", "2"), stdout=subprocess.PIPE,
                                 stderr=subprocess.STDOUT, text=True)
         dirs = run_dirs(out)
@@ -144,6 +151,7 @@ def local_engine_result():
         code, output = call("run", sweep, "--out", out, "--jobs", "2")
         assert code == 0, output
         assert "resumed (killed at" in output, output
+        assert "pendulum/sac/seed2: restarted (killed before its first checkpoint)" in output, output
         code, output = call("status", sweep, "--out", out)
         assert output.count(" done ") == 3 and "3 done" in output, output
     except Exception as e:
