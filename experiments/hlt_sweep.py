@@ -322,7 +322,7 @@ class Stopper:
     def __init__(self):
         self.stopping = threading.Event()
         self.signal = None
-        self.lock = threading.Lock()
+        self.lock = threading.RLock()  # re-entrant: the signal handler runs in the main thread, which may hold it
         self.children = set()
 
     def add(self, proc):
