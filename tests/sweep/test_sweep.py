@@ -134,12 +134,12 @@ def local_engine_result():
         os.makedirs(d2)
         write(os.path.join(d2, "config.yaml"), "checkpoint:\n  every: 100\ntrain:\n  agent_steps: 400\n")
         write(os.path.join(d2, "scalars.csv"), "")
-        write(os.path.join(d2, ".lock"), "1\n")
+        write(os.path.join(d2, ".lock"), "")
         proc = subprocess.Popen(sweep_cmd("run", sweep, "--out", out, "--jobs", "2"), stdout=subprocess.PIPE,
                                 stderr=subprocess.STDOUT, text=True)
         dirs = run_dirs(out)
-        wait_for(lambda: any(has_checkpoint_not_final(d) for d in dirs[:2]), 60, "a checkpoint of a local run")
-        pids = [p for p in (lock_pid(d) for d in dirs[:2]) if p]
+        wait_for(lambda: any(has_checkpoint_not_final(d) for d in dirs), 60, "a checkpoint of a local run")
+        pids = [p for p in (lock_pid(d) for d in dirs) if p]
         proc.send_signal(signal.SIGTERM)
         output, _ = proc.communicate(timeout=30)
         assert proc.returncode == 143, "run after SIGTERM: exit %s\n%s" % (proc.returncode, output)
