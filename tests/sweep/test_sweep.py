@@ -67,8 +67,23 @@ def run_dirs(out):
     return [os.path.join(out, "pendulum", "sac", "seed%d" % s) for s in (0, 1, 2)]
 
 
-def has_checkpoint_not_final(d):
-    return os.path.exists(os.path.join(d, "checkpoint.pt")) and not os.path.exists(os.path.join(d, "final.pt"))
+def logged_steps(d):
+    steps = 0
+    try:
+        with open(os.path.join(d, "scalars.csv")) as f:
+            for line in f:
+                fields = line.split(",")
+                if len(fields) == 4 and fields[2] == "train/agent_steps":
+                    steps = int(float(fields[3]))
+    except OSError:
+        pass
+    return steps
+
+
+def mid_run(d):
+    """Past a checkpoint and at least 200 of the 400 agent steps still to go (a second or more)."""
+    return (os.path.exists(os.path.join(d, "checkpoint.pt")) and not os.path.exists(os.path.join(d, "final.pt"))
+            and logged_steps(d) <= 200)
 
 
 def wait_for(predicate, timeout, what):
@@ -138,7 +153,7 @@ def local_engine_result():
         proc = subprocess.Popen(sweep_cmd("run", sweep, "--out", out, "--jobs", "2"), stdout=subprocess.PIPE,
                                 stderr=subprocess.STDOUT, text=True)
         dirs = run_dirs(out)
-        wait_for(lambda: any(has_checkpoint_not_final(d) for d in dirs), 60, "a checkpoint of a local run")
+        wait_for(lambda: any(mid_run(d) for d in dirs), 60, "a checkpoint of a local run")
         pids = [p for p in (lock_pid(d) for d in dirs) if p]
         proc.send_signal(signal.SIGTERM)
         output, _ = proc.communicate(timeout=30)
@@ -262,7 +277,7 @@ class SlurmEngine(unittest.TestCase):
             self.assertIn("array 0-2", first)
             # Requeue task 1 once it has a checkpoint and before it finishes (what preemption does).
             target = run_dirs(out)[1]
-            wait_for(lambda: has_checkpoint_not_final(target), 60, "a checkpoint of Slurm task 1")
+            wait_for(lambda: mid_run(target), 60, "a checkpoint of Slurm task 1")
             killed_pid = lock_pid(target)
             self.slurm("scontrol", "requeue", "%s_1" % job)
             # A requeued job waits two minutes before it may start again; let it start now.
@@ -276,6 +291,7 @@ class SlurmEngine(unittest.TestCase):
                 time.sleep(0.2)
             if killed_pid:
                 self.assertFalse(pid_alive(killed_pid), "the requeued task's hlt_train still runs")
+            self.assertNotEqual(lock_pid(target), killed_pid, "the requeued task did not start again in 30 s")
             rest, _ = proc.communicate(timeout=90)
         finally:
             if proc.poll() is None:
