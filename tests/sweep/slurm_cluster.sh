@@ -117,7 +117,9 @@ SlurmUser=root
 SlurmdUser=root
 AuthType=auth/munge
 CredType=cred/munge
-AuthInfo=socket=$socket
+# cred_expire: how long a killed job's credential stays revoked, and so how long a requeued job waits before it
+# may start again (default 120 s; its relaunch would be refused before that).
+AuthInfo=socket=$socket,cred_expire=5
 ProctrackType=proctrack/linuxproc
 TaskPlugin=task/none
 MpiDefault=none

@@ -275,18 +275,21 @@ class SlurmEngine(unittest.TestCase):
             self.assertIn("submitted job", first)
             job = first.split("submitted job ")[1].split(":")[0]
             self.assertIn("array 0-2", first)
+            # Two 1-CPU tasks fit the node at once: the third is queued, or running already.
+            code, output = call("status", sweep, "--out", out, env=self.env)
+            self.assertEqual(code, 0, output)
+            self.assertRegex(output, r"pendulum/sac/seed2 +(queued|running|done) ")
             # Requeue task 1 once it has a checkpoint and before it finishes (what preemption does).
             target = run_dirs(out)[1]
             wait_for(lambda: mid_run(target), 60, "a checkpoint of Slurm task 1")
             killed_pid = lock_pid(target)
             self.slurm("scontrol", "requeue", "%s_1" % job)
-            # A requeued job waits two minutes before it may start again; let it start now.
+            # The requeued task may start again once the killed one's credential expired (cred_expire=5 in
+            # the test cluster's slurm.conf; 120 s by default).
             deadline = time.monotonic() + 30
             while time.monotonic() < deadline:
                 state = self.slurm("squeue", "-h", "-j", "%s_1" % job, "-o", "%T", check=False).stdout.strip()
-                if state == "PENDING":
-                    self.slurm("scontrol", "update", "JobId=%s_1" % job, "StartTime=now", check=False)
-                elif state == "RUNNING" and lock_pid(target) != killed_pid:
+                if state == "RUNNING" and lock_pid(target) != killed_pid:
                     break
                 time.sleep(0.2)
             if killed_pid:
