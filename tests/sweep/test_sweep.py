@@ -357,7 +357,8 @@ def main():
             skipped += 1
         else:  # a class skipped in setUpClass: its tests never ran
             skipped += loader.loadTestsFromTestCase(SlurmEngine).countTestCases()
-        print("skipped: %s: %s" % (test.id().split(".", 1)[-1], reason))
+        name = test.id().split(".", 1)[-1] if isinstance(test, unittest.TestCase) else "SlurmEngine (every test)"
+        print("skipped: %s: %s" % (name, reason))
     passed = result.testsRun - failed - skipped_run
     print("test_sweep: %.0f s" % (time.monotonic() - start))
     print("%d passed, %d failed, %d skipped" % (passed, failed, skipped))
