@@ -11,7 +11,8 @@ packages=(
   libopencv-dev libapriltag-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-matplotlib python3-numpy
-  python3-protobuf python3-crc32c
+  python3-protobuf python3-crc32c python3-yaml
+  slurm-wlm munge
   clang-format
 )
 

@@ -231,25 +231,6 @@ TEST(TrainCli, SecondWriterOfARunDirectoryIsRefused) {
   EXPECT_EQ(read_file(dir + "/config.yaml"), config);
 }
 
-TEST(Sweep, ReportsEveryFailureAndTellsRunStatesApart) {
-  const std::string out = fresh_dir("sweep");
-  const std::string build = fs::path(kTrain).parent_path().parent_path().string();
-  const std::string sweep = "HLT_BUILD_DIR=" + build + " " + HLT_SWEEP_SCRIPT;
-  // Seed 0 trains; then both seeds with a bad override: seed 0 is finished (skipped), seed 1 fails.
-  Result r = run(sweep + " --env pendulum --methods sac --seeds 0 --steps 50 --out " + out +
-                 " train.update_after=32 eval.every=0 sac.q_hidden=[16,16]");
-  ASSERT_EQ(r.code, 0) << r.output;
-  r = run(sweep + " --env pendulum --methods sac --seeds '0 1 2' --steps 50 --out " + out + " sac.lr=5");
-  EXPECT_EQ(r.code, 1) << r.output;
-  EXPECT_NE(r.output.find("sac seed 1: FAILED (exit 2)"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("sac seed 2: FAILED (exit 2)"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("2 run(s) failed"), std::string::npos) << r.output;
-  r = run(sweep + " --status --methods sac --seeds '0 1' --out " + out);
-  EXPECT_EQ(r.code, 0) << r.output;
-  EXPECT_NE(r.output.find("seed 0    finished"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("seed 1    missing"), std::string::npos) << r.output;
-}
-
 TEST(TrainCli, FullDiskStopsTheRunWithAMessageAndKeepsWhatWasWritten) {
   const fs::path mount = fs::temp_directory_path() / "hlt_full_disk";
   fs::create_directories(mount);
