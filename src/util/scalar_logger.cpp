@@ -53,9 +53,12 @@ void ScalarLogger::log(int64_t step, const std::string& tag, double value) {
 }
 
 std::vector<ScalarRow> ScalarLogger::read(const std::string& path) {
-  std::istringstream in(read_file(path));
-  std::string line;
+  const std::string text = read_file(path);
   std::vector<ScalarRow> rows;
+  // A run killed before its header was flushed leaves an empty file (or part of the header): no rows.
+  if (std::string(kHeader).rfind(text, 0) == 0) return rows;
+  std::istringstream in(text);
+  std::string line;
   check(static_cast<bool>(std::getline(in, line)) && line == kHeader, "{} is not a scalar log (header '{}')",
         path, kHeader);
   int line_no = 1;
@@ -80,7 +83,7 @@ void ScalarLogger::truncate_after(const std::string& path, int64_t max_step) {
   std::istringstream in(read_file(path));
   std::string line, kept;
   std::getline(in, line);
-  kept = line + "\n";
+  kept = std::string(kHeader) + "\n";  // also when the header itself was cut off
   while (std::getline(in, line)) {
     // A partial last line (a run killed mid-write) lacks fields: drop it. Rows up to the checkpoint were
     // flushed before the checkpoint was written, so they are complete.

@@ -88,6 +88,27 @@ TEST(ScalarLogger, MalformedFilesAreReported) {
   EXPECT_THROW(log.log(0, "a,b", 1), Error);
 }
 
+TEST(ScalarLogger, ALogKilledBeforeItsHeaderReadsAsEmptyAndResumes) {
+  // A run killed in its first instant leaves an empty log, or part of the header.
+  for (const std::string& content : {std::string(), std::string("wall_time,st")}) {
+    const std::string path = temp_path("cut_header.csv");
+    write_file_atomic(path, content);
+    EXPECT_TRUE(ScalarLogger::read(path).empty());
+    ScalarLogger::truncate_after(path, -1);
+    {
+      ScalarLogger log(path);
+      log.log(3, "x", 1.5);
+    }
+    const auto rows = ScalarLogger::read(path);
+    ASSERT_EQ(rows.size(), 1u);
+    EXPECT_EQ(rows[0].step, 3);
+  }
+  // Something else without a header is still not a log.
+  const std::string other = temp_path("not_a_log.csv");
+  write_file_atomic(other, "step,value\n1,2\n");
+  EXPECT_THROW(ScalarLogger::read(other), Error);
+}
+
 TEST(Files, AtomicWriteReplacesWholeFile) {
   const std::string path = temp_path("atomic.txt");
   write_file_atomic(path, "first version, long content");
