@@ -19,7 +19,8 @@ Eigen::Map<RowMatrix<T>> block(const at::Tensor& t, int64_t offset, int64_t rows
 
 }  // namespace
 
-PolicySampler::PolicySampler(GaussianPolicy policy) : forward_(std::move(policy)) {}
+PolicySampler::PolicySampler(GaussianPolicy policy, bool tanh_correction)
+    : forward_(std::move(policy)), tanh_correction_(tanh_correction) {}
 
 void PolicySampler::begin(int64_t samples, const at::Tensor& plan) {
   forward_.prepare(samples);
@@ -54,9 +55,13 @@ at::Tensor PolicySampler::log_density(const at::Tensor& actions) {
                  ls = block<T>(log_std_, t * m * K, m, K).array(),
                  v = block<T>(actions, t * m * K, m, K).array();
       // u - mu = sigma eps, so the Gaussian term is -eps^2 / 2 - log sigma - log(2 pi) / 2 per dimension; the
-      // tanh change of variables subtracts log(1 - v^2 + 1e-6).
-      const auto per_dim = T(-0.5) * eps.square() - ls - T(kHalfLog2Pi) - (T(1 + 1e-6) - v.square()).log();
-      block<T>(out, t * K, 1, K) = per_dim.colwise().sum().matrix();
+      // tanh change of variables (if asked for) subtracts log(1 - v^2 + 1e-6).
+      const auto gauss = T(-0.5) * eps.square() - ls - T(kHalfLog2Pi);
+      if (tanh_correction_) {
+        block<T>(out, t * K, 1, K) = (gauss - (T(1 + 1e-6) - v.square()).log()).colwise().sum().matrix();
+      } else {
+        block<T>(out, t * K, 1, K) = gauss.colwise().sum().matrix();
+      }
     }
   });
   return out;

@@ -29,16 +29,21 @@ class ActionSampler {
   virtual at::Tensor log_density(const at::Tensor& actions) = 0;
 };
 
-// v ~ pi(.|s) at every rollout's own state (closed loop); log-density with the tanh correction.
+// v = tanh(u), u ~ N(mu(s), Sigma(s)) at every rollout's own state (closed loop). The reported log-density
+// is that of the Gaussian pi = N(mu, Sigma) the paper's Theorem 2 weights with (the authors' code too), at
+// the pre-tanh sample u; with `tanh_correction` it is the density of the squashed action v instead, which
+// adds -log(1 - v^2 + 1e-6) per dimension: up to +13.8 for a saturated action, so that a weight exp(J /
+// lambda) p(v) then prefers saturated samples whatever their predicted return.
 class PolicySampler : public ActionSampler {
  public:
-  explicit PolicySampler(GaussianPolicy policy);
+  explicit PolicySampler(GaussianPolicy policy, bool tanh_correction = true);
   void begin(int64_t samples, const at::Tensor& plan) override;
   void sample(int64_t t, const at::Tensor& states, const at::Tensor& plan_t, at::Tensor& actions) override;
   at::Tensor log_density(const at::Tensor& actions) override;
 
  private:
   PolicyForward forward_;
+  bool tanh_correction_;
   at::Tensor eps_, log_std_;  // [H, m, K]: standard normal draws and the log-std each was scaled by
 };
 
