@@ -57,9 +57,18 @@ std::unique_ptr<Controller> make_policy_controller(const LearnedModels& m, const
 std::unique_ptr<Controller> make_stochastic_hybrid(const LearnedModels& m, const Config& c, bool) {
   require(!m.policy.is_empty(), "stochastic_hybrid", "policy");
   require(!m.dynamics.is_empty() && !m.reward.is_empty(), "stochastic_hybrid", "dynamics and reward model");
-  auto sampler = std::make_shared<PolicySampler>(m.policy, c.get_bool("planner.density_tanh_correction"));
-  return std::make_unique<StochasticHybrid>(sampler, m.dynamics, m.reward, stochastic_options(c), m.policy,
-                                            "stochastic_hybrid");
+  std::shared_ptr<ActionSampler> sampler =
+      std::make_shared<PolicySampler>(m.policy, c.get_bool("planner.density_tanh_correction"));
+  StochasticHybridOptions o = stochastic_options(c);
+  const int64_t plan_samples = c.get_int("planner.plan_samples");
+  if (plan_samples > 0) {
+    // planner.samples rollouts from the policy plus plan_samples around the warm-started plan.
+    auto noise =
+        std::make_shared<FilteredNoiseSampler>(c.get_double("mppi.sigma"), c.get_double("mppi.filter"));
+    sampler = std::make_shared<MixtureSampler>(sampler, noise, plan_samples);
+    o.samples += plan_samples;
+  }
+  return std::make_unique<StochasticHybrid>(sampler, m.dynamics, m.reward, o, m.policy, "stochastic_hybrid");
 }
 
 std::unique_ptr<Controller> make_mppi(const LearnedModels& m, const Config& c, bool) {

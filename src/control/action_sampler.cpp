@@ -111,4 +111,39 @@ at::Tensor FilteredNoiseSampler::log_density(const at::Tensor& actions) {
   return out;
 }
 
+MixtureSampler::MixtureSampler(std::shared_ptr<ActionSampler> first, std::shared_ptr<ActionSampler> second,
+                               int64_t second_samples)
+    : first_(std::move(first)), second_(std::move(second)), second_samples_(second_samples) {
+  check(first_ && second_, "mixture sampler: needs two samplers");
+  check(second_samples >= 1, "mixture sampler: second_samples must be >= 1, got {}", second_samples);
+}
+
+void MixtureSampler::begin(int64_t samples, const at::Tensor& plan) {
+  check(samples > second_samples_, "mixture sampler: {} samples, {} of them for the second sampler", samples,
+        second_samples_);
+  first_samples_ = samples - second_samples_;
+  first_->begin(first_samples_, plan);
+  second_->begin(second_samples_, plan);
+  const int64_t m = plan.size(1);
+  if (!actions_first_.defined() || actions_first_.size(1) != first_samples_ || actions_first_.size(0) != m ||
+      actions_first_.scalar_type() != plan.scalar_type()) {
+    actions_first_ = torch::empty({m, first_samples_}, plan.options());
+    actions_second_ = torch::empty({m, second_samples_}, plan.options());
+  }
+}
+
+void MixtureSampler::sample(int64_t t, const at::Tensor& states, const at::Tensor& plan_t,
+                            at::Tensor& actions) {
+  const at::Tensor s1 = states.narrow(1, 0, first_samples_).contiguous();
+  const at::Tensor s2 = states.narrow(1, first_samples_, second_samples_).contiguous();
+  first_->sample(t, s1, plan_t, actions_first_);
+  second_->sample(t, s2, plan_t, actions_second_);
+  actions.narrow(1, 0, first_samples_).copy_(actions_first_);
+  actions.narrow(1, first_samples_, second_samples_).copy_(actions_second_);
+}
+
+at::Tensor MixtureSampler::log_density(const at::Tensor& actions) {
+  return torch::zeros({actions.size(0), actions.size(2)}, actions.options());
+}
+
 }  // namespace hlt

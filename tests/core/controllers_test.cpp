@@ -379,6 +379,67 @@ TEST(StochasticHybrid, GaussianDensityIsThePolicysGaussianAtThePreTanhSample) {
   EXPECT_NEAR(gaussian.diagnostics().saturated_weight, (w0 * sat).sum().item<double>(), 1e-12);
 }
 
+// The mixture: the first K1 rollouts are the policy sampler's own draws, the rest NN-MPPI's noise around the
+// plan; the log-density is 0 (weights exp(J / lambda) alone).
+TEST(StochasticHybrid, MixtureSamplerSplitsTheRolloutsAndHasFlatDensity) {
+  Models md = random_models(3, 1, 23, -0.5);
+  const auto s0 = torch::randn({3}, torch::kFloat64);
+  torch::manual_seed(8);
+  StochasticHybrid alone(std::make_shared<PolicySampler>(md.policy, false), md.dynamics, md.reward,
+                         StochasticHybridOptions{4, 12, 0.5, true, 0.0}, md.policy);
+  alone.act(s0);
+  torch::manual_seed(8);
+  auto mixture = std::make_shared<MixtureSampler>(std::make_shared<PolicySampler>(md.policy, false),
+                                                  std::make_shared<FilteredNoiseSampler>(0.3, 0.5), 5);
+  StochasticHybrid mixed(mixture, md.dynamics, md.reward, StochasticHybridOptions{4, 17, 0.5, true, 0.0},
+                         md.policy);
+  mixed.act(s0);
+  // The same first random draws: the policy part is identical (its rollouts do not depend on the others).
+  EXPECT_TRUE(torch::allclose(mixed.samples().narrow(1, 0, 12), alone.samples(), 0, 0));
+  EXPECT_EQ(mixed.log_density().abs().sum().item<double>(), 0.0);
+  // The noise part: step 0 is the (zero) plan plus 0.5 * 0.3 * z, inside [-1, 1] and not the policy's.
+  auto noise = mixed.samples().narrow(1, 12, 5);
+  EXPECT_LE(noise.abs().max().item<double>(), 1.0);
+  EXPECT_LT(noise[0].abs().max().item<double>(), 0.15 * 6);
+  // The first sampler needs at least one rollout.
+  StochasticHybrid too_few(mixture, md.dynamics, md.reward, StochasticHybridOptions{4, 5, 0.5, true, 0.0},
+                           md.policy);
+  EXPECT_THROW(too_few.act(s0), std::exception);
+}
+
+// A confident policy far from the optimum: the policy sampler alone cannot leave it; with samples around the
+// warm-started plan the planner walks the plan to the known optimum goal - s.
+TEST(StochasticHybrid, PlanSamplesLetTheModelsLeaveAPoorPolicy) {
+  torch::manual_seed(9);
+  Models md = known_answer_models(0.5);
+  auto policy = GaussianPolicy(GaussianPolicyOptions{1, 1, {8}, Activation::kSin});
+  {
+    torch::NoGradGuard g;
+    auto mean_last = policy->mean_layers[1]->as<torch::nn::Linear>();
+    mean_last->weight.zero_();
+    mean_last->bias.fill_(-1.0);  // mu = tanh(-1) = -0.76 everywhere
+    policy->log_std_layers[1]->as<torch::nn::Linear>()->weight.zero_();
+    policy->log_std_layers[1]->as<torch::nn::Linear>()->bias.fill_(-4.0);  // std 0.018
+  }
+  const auto s0 = torch::tensor({-0.2f});
+  StochasticHybrid alone(std::make_shared<PolicySampler>(policy, false), md.dynamics, md.reward,
+                         StochasticHybridOptions{1, 40, 0.01, true, 1e-5}, policy);
+  auto mixture = std::make_shared<MixtureSampler>(std::make_shared<PolicySampler>(policy, false),
+                                                  std::make_shared<FilteredNoiseSampler>(0.3, 0.0), 40);
+  StochasticHybrid mixed(mixture, md.dynamics, md.reward, StochasticHybridOptions{1, 80, 0.01, true, 1e-5},
+                         policy);
+  double sum_alone = 0, sum_mixed = 0;
+  for (int i = 0; i < 100; ++i) {
+    const double a = alone.act(s0)[0].item<double>(), b = mixed.act(s0)[0].item<double>();
+    if (i >= 50) {
+      sum_alone += a;
+      sum_mixed += b;
+    }
+  }
+  EXPECT_NEAR(sum_alone / 50, std::tanh(-1.0), 0.05);  // stuck at the policy
+  EXPECT_NEAR(sum_mixed / 50, 0.7, 0.08);              // goal - s = 0.5 - (-0.2)
+}
+
 TEST(StochasticHybrid, UniformWeightsHaveFullEffectiveSampleSize) {
   torch::manual_seed(6);
   Models md = random_models(2, 1, 32);

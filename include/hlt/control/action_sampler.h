@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 
 #include <ATen/core/Tensor.h>
 
@@ -59,6 +60,26 @@ class FilteredNoiseSampler : public ActionSampler {
  private:
   double sigma_, filter_;
   at::Tensor z_, eta_;
+};
+
+// Two proposals side by side: the first K - second_samples rollouts draw from `first` (the policy), the last
+// `second_samples` from `second` (NN-MPPI's noise around the warm-started plan). Their log-densities belong
+// to different proposals and do not compare, so log_density() is 0 for every sample: the planner's weights
+// are exp(J / lambda) alone. With the policy first this lets the models keep and improve a plan of their own
+// when the policy proposes only poor actions (the policy sampler alone ignores the warm start: a + sum w (v -
+// a) = sum w v).
+class MixtureSampler : public ActionSampler {
+ public:
+  MixtureSampler(std::shared_ptr<ActionSampler> first, std::shared_ptr<ActionSampler> second,
+                 int64_t second_samples);
+  void begin(int64_t samples, const at::Tensor& plan) override;
+  void sample(int64_t t, const at::Tensor& states, const at::Tensor& plan_t, at::Tensor& actions) override;
+  at::Tensor log_density(const at::Tensor& actions) override;
+
+ private:
+  std::shared_ptr<ActionSampler> first_, second_;
+  int64_t second_samples_, first_samples_ = 0;
+  at::Tensor actions_first_, actions_second_;  // [m, K1], [m, K2]
 };
 
 }  // namespace hlt
