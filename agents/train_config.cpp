@@ -53,10 +53,10 @@ Config make_train_config() {
       .add_int("planner.horizon", 5, "planning horizon H (agent steps)", 1, 1000)
       .add_int("planner.samples", 20, "rollouts K of the stochastic planners", 1, 100000)
       .add_double("planner.lambda", 0.1, "temperature lambda of the stochastic planners", 1e-9, 1e12)
-      .add_int("planner.plan_samples", 0,
+      .add_int("planner.plan_samples", 20,
                "hybrid-stochastic: extra rollouts drawn around the warm-started plan with NN-MPPI's noise "
                "(mppi.sigma, mppi.filter) next to the planner.samples policy rollouts; the weights are then "
-               "exp(J / lambda) alone (0: policy rollouts only)",
+               "exp(J / lambda) alone (0: policy rollouts only, the paper's Alg. 2)",
                0, 100000)
       .add_bool("planner.density_in_weights", true, "include log p(v) in the stochastic planner's weights")
       .add_bool("planner.density_tanh_correction", false,
