@@ -59,9 +59,11 @@ Config make_train_config() {
                "exp(J / lambda) alone (0: policy rollouts only, the paper's Alg. 2)",
                0, 100000)
       .add_bool("planner.density_in_weights", true, "include log p(v) in the stochastic planner's weights")
-      .add_bool("planner.density_tanh_correction", false,
-                "hybrid-stochastic: p(v) is the density of the squashed action tanh(u) (adds -log(1 - v^2), "
-                "which favours saturated samples) instead of the policy's Gaussian N(mu, Sigma) at u")
+      .add_bool(
+          "planner.density_tanh_correction", true,
+          "hybrid-stochastic without plan samples: p(v) is the density of the squashed action tanh(u) "
+          "(adds -log(1 - v^2)) instead of the policy's Gaussian N(mu, Sigma) at u (false, the authors' "
+          "choice); with plan samples p(v) is not in the weights")
       .add_double("mppi.sigma", 0.3, "NN-MPPI noise standard deviation", 1e-6, 10.0)
       .add_double("mppi.filter", 0.5, "NN-MPPI low-pass filter coefficient (eta = f eta + (1 - f) eps)", 0.0,
                   0.999)
