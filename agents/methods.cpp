@@ -65,7 +65,8 @@ std::unique_ptr<Controller> make_stochastic_hybrid(const LearnedModels& m, const
     // planner.samples rollouts from the policy plus plan_samples around the warm-started plan.
     auto noise =
         std::make_shared<FilteredNoiseSampler>(c.get_double("mppi.sigma"), c.get_double("mppi.filter"));
-    sampler = std::make_shared<MixtureSampler>(sampler, noise, plan_samples);
+    sampler = std::make_shared<MixtureSampler>(sampler, noise, plan_samples, m.policy,
+                                               c.get_bool("planner.density_tanh_correction"));
     o.samples += plan_samples;
   }
   return std::make_unique<StochasticHybrid>(sampler, m.dynamics, m.reward, o, m.policy, "stochastic_hybrid");

@@ -53,17 +53,16 @@ Config make_train_config() {
       .add_int("planner.horizon", 5, "planning horizon H (agent steps)", 1, 1000)
       .add_int("planner.samples", 20, "rollouts K of the stochastic planners", 1, 100000)
       .add_double("planner.lambda", 0.1, "temperature lambda of the stochastic planners", 1e-9, 1e12)
-      .add_int("planner.plan_samples", 20,
-               "hybrid-stochastic: extra rollouts drawn around the warm-started plan with NN-MPPI's noise "
-               "(mppi.sigma, mppi.filter) next to the planner.samples policy rollouts; the weights are then "
-               "exp(J / lambda) alone (0: policy rollouts only, the paper's Alg. 2)",
-               0, 100000)
+      .add_int(
+          "planner.plan_samples", 20,
+          "hybrid-stochastic: extra rollouts drawn around the warm-started plan with NN-MPPI's noise "
+          "(mppi.sigma, mppi.filter) next to the planner.samples policy rollouts, every sample weighted by "
+          "exp(J / lambda) pi(v | s) (0: policy rollouts only, the paper's Alg. 2)",
+          0, 100000)
       .add_bool("planner.density_in_weights", true, "include log p(v) in the stochastic planner's weights")
-      .add_bool(
-          "planner.density_tanh_correction", true,
-          "hybrid-stochastic without plan samples: p(v) is the density of the squashed action tanh(u) "
-          "(adds -log(1 - v^2)) instead of the policy's Gaussian N(mu, Sigma) at u (false, the authors' "
-          "choice); with plan samples p(v) is not in the weights")
+      .add_bool("planner.density_tanh_correction", false,
+                "hybrid-stochastic: p(v) is the density of the squashed action tanh(u) (adds -log(1 - v^2)) "
+                "instead of the policy's Gaussian N(mu, Sigma) at u = atanh(v) (false: the authors' choice)")
       .add_double("mppi.sigma", 0.3, "NN-MPPI noise standard deviation", 1e-6, 10.0)
       .add_double("mppi.filter", 0.5, "NN-MPPI low-pass filter coefficient (eta = f eta + (1 - f) eps)", 0.0,
                   0.999)

@@ -380,8 +380,8 @@ TEST(StochasticHybrid, GaussianDensityIsThePolicysGaussianAtThePreTanhSample) {
 }
 
 // The mixture: the first K1 rollouts are the policy sampler's own draws, the rest NN-MPPI's noise around the
-// plan; the log-density is 0 (weights exp(J / lambda) alone).
-TEST(StochasticHybrid, MixtureSamplerSplitsTheRolloutsAndHasFlatDensity) {
+// plan; every sample's log-density is the policy's Gaussian at atanh(v) at that sample's rollout state.
+TEST(StochasticHybrid, MixtureSamplerSplitsTheRolloutsAndScoresAllByThePolicy) {
   Models md = random_models(3, 1, 23, -0.5);
   const auto s0 = torch::randn({3}, torch::kFloat64);
   torch::manual_seed(8);
@@ -389,55 +389,82 @@ TEST(StochasticHybrid, MixtureSamplerSplitsTheRolloutsAndHasFlatDensity) {
                          StochasticHybridOptions{4, 12, 0.5, true, 0.0}, md.policy);
   alone.act(s0);
   torch::manual_seed(8);
-  auto mixture = std::make_shared<MixtureSampler>(std::make_shared<PolicySampler>(md.policy, false),
-                                                  std::make_shared<FilteredNoiseSampler>(0.3, 0.5), 5);
-  StochasticHybrid mixed(mixture, md.dynamics, md.reward, StochasticHybridOptions{4, 17, 0.5, true, 0.0},
+  auto mixture =
+      std::make_shared<MixtureSampler>(std::make_shared<PolicySampler>(md.policy, false),
+                                       std::make_shared<FilteredNoiseSampler>(0.3, 0.5), 5, md.policy);
+  const double lambda = 0.5;
+  StochasticHybrid mixed(mixture, md.dynamics, md.reward, StochasticHybridOptions{4, 17, lambda, true, 0.0},
                          md.policy);
   mixed.act(s0);
-  // The same first random draws: the policy part is identical (its rollouts do not depend on the others).
+  // The same first random draws: the policy part is identical (its rollouts do not depend on the others),
+  // and so is its log-density (up to the atanh round trip).
   EXPECT_TRUE(torch::allclose(mixed.samples().narrow(1, 0, 12), alone.samples(), 0, 0));
-  EXPECT_EQ(mixed.log_density().abs().sum().item<double>(), 0.0);
-  // The noise part: step 0 is the (zero) plan plus 0.5 * 0.3 * z, inside [-1, 1] and not the policy's.
-  auto noise = mixed.samples().narrow(1, 12, 5);
+  EXPECT_TRUE(torch::allclose(mixed.log_density().narrow(1, 0, 12), alone.log_density(), 1e-6, 1e-6));
+  // The noise part: step 0 is the (zero) plan plus 0.5 * 0.3 * z, inside [-1, 1].
+  auto V = mixed.samples();  // [H, K, m]
+  auto noise = V.narrow(1, 12, 5);
   EXPECT_LE(noise.abs().max().item<double>(), 1.0);
   EXPECT_LT(noise[0].abs().max().item<double>(), 0.15 * 6);
+  // Every sample's density and weight by hand: roll the models forward, the policy's Gaussian at each state.
+  torch::NoGradGuard g;
+  auto s = s0.unsqueeze(0).expand({17, 3}).clone();
+  std::vector<torch::Tensor> r, lp;
+  for (int t = 0; t < 4; ++t) {
+    const auto [mean, log_std] = md.policy->forward(s);
+    auto u = torch::atanh(V[t].clamp(-1 + 1e-6, 1 - 1e-6));
+    lp.push_back((-0.5 * ((u - mean) / log_std.exp()).square() - log_std - 0.5 * std::log(2 * M_PI)).sum(-1));
+    r.push_back(md.reward->forward(s, V[t]).squeeze(-1));
+    s = md.dynamics->forward(s, V[t]);
+  }
+  auto log_p = torch::stack(lp);
+  EXPECT_TRUE(torch::allclose(mixed.log_density(), log_p, 1e-6, 1e-6)) << mixed.log_density() << log_p;
+  auto J = torch::stack(r).flip(0).cumsum(0).flip(0);
+  EXPECT_TRUE(torch::allclose(mixed.weights(), torch::softmax(J / lambda + log_p, 1), 1e-6, 1e-9));
   // The first sampler needs at least one rollout.
   StochasticHybrid too_few(mixture, md.dynamics, md.reward, StochasticHybridOptions{4, 5, 0.5, true, 0.0},
                            md.policy);
   EXPECT_THROW(too_few.act(s0), std::exception);
 }
 
-// A confident policy far from the optimum: the policy sampler alone cannot leave it; with samples around the
-// warm-started plan the planner walks the plan to the known optimum goal - s.
+// A policy far from the optimum. The policy sampler alone cannot leave it; with samples around the
+// warm-started plan and flat weights the planner walks to the known optimum goal - s; with the policy's
+// density in the weights (Theorem 2's bound) a confident policy keeps the plan, a broad one lets it go.
+GaussianPolicy constant_policy(double mean_raw, double log_std) {
+  auto policy = GaussianPolicy(GaussianPolicyOptions{1, 1, {8}, Activation::kSin});
+  torch::NoGradGuard g;
+  auto mean_last = policy->mean_layers[1]->as<torch::nn::Linear>();
+  mean_last->weight.zero_();
+  mean_last->bias.fill_(mean_raw);
+  policy->log_std_layers[1]->as<torch::nn::Linear>()->weight.zero_();
+  policy->log_std_layers[1]->as<torch::nn::Linear>()->bias.fill_(log_std);
+  return policy;
+}
+
 TEST(StochasticHybrid, PlanSamplesLetTheModelsLeaveAPoorPolicy) {
   torch::manual_seed(9);
   Models md = known_answer_models(0.5);
-  auto policy = GaussianPolicy(GaussianPolicyOptions{1, 1, {8}, Activation::kSin});
-  {
-    torch::NoGradGuard g;
-    auto mean_last = policy->mean_layers[1]->as<torch::nn::Linear>();
-    mean_last->weight.zero_();
-    mean_last->bias.fill_(-1.0);  // mu = tanh(-1) = -0.76 everywhere
-    policy->log_std_layers[1]->as<torch::nn::Linear>()->weight.zero_();
-    policy->log_std_layers[1]->as<torch::nn::Linear>()->bias.fill_(-4.0);  // std 0.018
-  }
   const auto s0 = torch::tensor({-0.2f});
-  StochasticHybrid alone(std::make_shared<PolicySampler>(policy, false), md.dynamics, md.reward,
-                         StochasticHybridOptions{1, 40, 0.01, true, 1e-5}, policy);
-  auto mixture = std::make_shared<MixtureSampler>(std::make_shared<PolicySampler>(policy, false),
-                                                  std::make_shared<FilteredNoiseSampler>(0.3, 0.0), 40);
-  StochasticHybrid mixed(mixture, md.dynamics, md.reward, StochasticHybridOptions{1, 80, 0.01, true, 1e-5},
-                         policy);
-  double sum_alone = 0, sum_mixed = 0;
-  for (int i = 0; i < 100; ++i) {
-    const double a = alone.act(s0)[0].item<double>(), b = mixed.act(s0)[0].item<double>();
-    if (i >= 50) {
-      sum_alone += a;
-      sum_mixed += b;
+  auto average_action = [&](GaussianPolicy policy, int64_t plan_samples, bool density) {
+    std::shared_ptr<ActionSampler> sampler = std::make_shared<PolicySampler>(policy, false);
+    if (plan_samples > 0) {
+      sampler = std::make_shared<MixtureSampler>(sampler, std::make_shared<FilteredNoiseSampler>(0.5, 0.0),
+                                                 plan_samples, policy);
     }
-  }
-  EXPECT_NEAR(sum_alone / 50, std::tanh(-1.0), 0.05);  // stuck at the policy
-  EXPECT_NEAR(sum_mixed / 50, 0.7, 0.08);              // goal - s = 0.5 - (-0.2)
+    StochasticHybrid h(sampler, md.dynamics, md.reward,
+                       StochasticHybridOptions{1, 40 + plan_samples, 0.01, density, 1e-5}, policy);
+    double sum = 0;
+    for (int i = 0; i < 100; ++i) {
+      const double a = h.act(s0)[0].item<double>();
+      if (i >= 50) sum += a;
+    }
+    return sum / 50;
+  };
+  const auto confident = constant_policy(-1.0, -4.0);                       // tanh(-1) = -0.76, std 0.018
+  const auto broad = constant_policy(-1.0, 0.0);                            // std 1 before the tanh
+  EXPECT_NEAR(average_action(confident, 0, true), std::tanh(-1.0), 0.05);   // stuck at the policy
+  EXPECT_NEAR(average_action(confident, 40, false), 0.7, 0.08);             // goal - s = 0.5 - (-0.2)
+  EXPECT_NEAR(average_action(confident, 40, true), std::tanh(-1.0), 0.05);  // the bound holds the plan
+  EXPECT_NEAR(average_action(broad, 40, true), 0.7, 0.08);                  // the models decide
 }
 
 TEST(StochasticHybrid, UniformWeightsHaveFullEffectiveSampleSize) {

@@ -63,15 +63,18 @@ class FilteredNoiseSampler : public ActionSampler {
 };
 
 // Two proposals side by side: the first K - second_samples rollouts draw from `first` (the policy), the last
-// `second_samples` from `second` (NN-MPPI's noise around the warm-started plan). Their log-densities belong
-// to different proposals and do not compare, so log_density() is 0 for every sample: the planner's weights
-// are exp(J / lambda) alone. With the policy first this lets the models keep and improve a plan of their own
-// when the policy proposes only poor actions (the policy sampler alone ignores the warm start: a + sum w (v -
-// a) = sum w v).
+// `second_samples` from `second` (NN-MPPI's noise around the warm-started plan). Every sample, whichever
+// proposal drew it, is scored by the same p(v) = pi(v | s_t) of `prior` (the policy) at the sample's own
+// rollout state: the Gaussian N(mu, Sigma) at u = atanh(v) (v clipped to +-(1 - 1e-6)), with the tanh
+// correction if asked for. In the weights exp(J / lambda) p(v) this is Theorem 2's bound that ties the plan
+// to the policy: a plan sample far from a confident policy needs a much higher predicted return to win,
+// while under a broad (or poor, uncertain) policy the models decide. With the policy first this lets the
+// models keep and improve a plan of their own (the policy sampler alone ignores the warm start:
+// a + sum w (v - a) = sum w v).
 class MixtureSampler : public ActionSampler {
  public:
   MixtureSampler(std::shared_ptr<ActionSampler> first, std::shared_ptr<ActionSampler> second,
-                 int64_t second_samples);
+                 int64_t second_samples, GaussianPolicy prior, bool tanh_correction = false);
   void begin(int64_t samples, const at::Tensor& plan) override;
   void sample(int64_t t, const at::Tensor& states, const at::Tensor& plan_t, at::Tensor& actions) override;
   at::Tensor log_density(const at::Tensor& actions) override;
@@ -79,7 +82,10 @@ class MixtureSampler : public ActionSampler {
  private:
   std::shared_ptr<ActionSampler> first_, second_;
   int64_t second_samples_, first_samples_ = 0;
+  PolicyForward prior_;
+  bool tanh_correction_;
   at::Tensor actions_first_, actions_second_;  // [m, K1], [m, K2]
+  at::Tensor mean_, log_std_;                  // [H, m, K]: the prior at every rollout state
 };
 
 }  // namespace hlt
