@@ -68,6 +68,8 @@ std::unique_ptr<Controller> make_stochastic_hybrid(const LearnedModels& m, const
     sampler = std::make_shared<MixtureSampler>(sampler, noise, plan_samples, m.policy,
                                                c.get_bool("planner.density_tanh_correction"));
     o.samples += plan_samples;
+    // Without the prior the weights are exp(J / lambda) alone.
+    if (!c.get_bool("planner.plan_prior")) o.density_in_weights = false;
   }
   return std::make_unique<StochasticHybrid>(sampler, m.dynamics, m.reward, o, m.policy, "stochastic_hybrid");
 }

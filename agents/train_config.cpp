@@ -57,8 +57,12 @@ Config make_train_config() {
           "planner.plan_samples", 20,
           "hybrid-stochastic: extra rollouts drawn around the warm-started plan with NN-MPPI's noise "
           "(mppi.sigma, mppi.filter) next to the planner.samples policy rollouts, every sample weighted by "
-          "exp(J / lambda) pi(v | s) (0: policy rollouts only, the paper's Alg. 2)",
+          "exp(J / lambda) (0: policy rollouts only, the paper's Alg. 2)",
           0, 100000)
+      .add_bool(
+          "planner.plan_prior", false,
+          "with plan samples: weight every sample by exp(J / lambda) pi(v | s), the policy's density at "
+          "the sample's state (Theorem 2's bound to the policy), instead of exp(J / lambda) alone")
       .add_bool("planner.density_in_weights", true, "include log p(v) in the stochastic planner's weights")
       .add_bool("planner.density_tanh_correction", false,
                 "hybrid-stochastic: p(v) is the density of the squashed action tanh(u) (adds -log(1 - v^2)) "
