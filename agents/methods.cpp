@@ -35,12 +35,17 @@ StochasticHybridOptions stochastic_options(const Config& c) {
   return o;
 }
 
-DeterministicHybridOptions deterministic_options(const Config& c, bool evaluation) {
+// `with_policy`: the hybrid (which uses deterministic.action_rule); the model-based baseline keeps the exact
+// rule (no policy: mu = 0, Sigma = I).
+DeterministicHybridOptions deterministic_options(const Config& c, bool evaluation, bool with_policy) {
   DeterministicHybridOptions o;
   o.horizon = c.get_int("planner.horizon");
   o.clamp_adjoint = c.get_bool("deterministic.clamp_adjoint");
   o.exploration_decay = c.get_double("deterministic.exploration_decay");
   o.explore = !evaluation;
+  if (with_policy && c.get_string("deterministic.action_rule") == "bounded") {
+    o.rule = DeterministicActionRule::kBounded;
+  }
   return o;
 }
 
@@ -52,8 +57,21 @@ std::unique_ptr<Controller> make_policy_controller(const LearnedModels& m, const
 std::unique_ptr<Controller> make_stochastic_hybrid(const LearnedModels& m, const Config& c, bool) {
   require(!m.policy.is_empty(), "stochastic_hybrid", "policy");
   require(!m.dynamics.is_empty() && !m.reward.is_empty(), "stochastic_hybrid", "dynamics and reward model");
-  return std::make_unique<StochasticHybrid>(std::make_shared<PolicySampler>(m.policy), m.dynamics, m.reward,
-                                            stochastic_options(c), m.policy, "stochastic_hybrid");
+  std::shared_ptr<ActionSampler> sampler =
+      std::make_shared<PolicySampler>(m.policy, c.get_bool("planner.density_tanh_correction"));
+  StochasticHybridOptions o = stochastic_options(c);
+  const int64_t plan_samples = c.get_int("planner.plan_samples");
+  if (plan_samples > 0) {
+    // planner.samples rollouts from the policy plus plan_samples around the warm-started plan.
+    auto noise =
+        std::make_shared<FilteredNoiseSampler>(c.get_double("mppi.sigma"), c.get_double("mppi.filter"));
+    sampler = std::make_shared<MixtureSampler>(sampler, noise, plan_samples, m.policy,
+                                               c.get_bool("planner.density_tanh_correction"));
+    o.samples += plan_samples;
+    // Without the prior the weights are exp(J / lambda) alone.
+    if (!c.get_bool("planner.plan_prior")) o.density_in_weights = false;
+  }
+  return std::make_unique<StochasticHybrid>(sampler, m.dynamics, m.reward, o, m.policy, "stochastic_hybrid");
 }
 
 std::unique_ptr<Controller> make_mppi(const LearnedModels& m, const Config& c, bool) {
@@ -69,14 +87,14 @@ std::unique_ptr<Controller> make_deterministic_hybrid(const LearnedModels& m, co
   require(!m.policy.is_empty(), "deterministic_hybrid", "policy");
   require(!m.dynamics.is_empty() && !m.reward.is_empty(), "deterministic_hybrid",
           "dynamics and reward model");
-  return std::make_unique<DeterministicHybrid>(m.policy, m.dynamics, m.reward,
-                                               deterministic_options(c, evaluation), "deterministic_hybrid");
+  return std::make_unique<DeterministicHybrid>(
+      m.policy, m.dynamics, m.reward, deterministic_options(c, evaluation, true), "deterministic_hybrid");
 }
 
 std::unique_ptr<Controller> make_mpc_deterministic(const LearnedModels& m, const Config& c, bool evaluation) {
   require(!m.dynamics.is_empty() && !m.reward.is_empty(), "mpc_deterministic", "dynamics and reward model");
-  return std::make_unique<DeterministicHybrid>(nullptr, m.dynamics, m.reward,
-                                               deterministic_options(c, evaluation), "mpc_deterministic");
+  return std::make_unique<DeterministicHybrid>(
+      nullptr, m.dynamics, m.reward, deterministic_options(c, evaluation, false), "mpc_deterministic");
 }
 
 using Factory = std::function<std::unique_ptr<Controller>(const LearnedModels&, const Config&, bool)>;

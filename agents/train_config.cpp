@@ -31,6 +31,9 @@ Config make_train_config() {
       .add_bool(
           "eval.components", true,
           "for hybrid methods also evaluate the policy alone and the model-based planner alone (Fig. 4)")
+      .add_bool("eval.compare_density", false,
+                "diagnostic for hybrid-stochastic: also evaluate the same networks with the other p(v) "
+                "(planner.density_tanh_correction toggled), logged as eval/other_density_return_mean")
       .add_int("checkpoint.every", 5000, "agent steps between checkpoints (written at the next episode end)",
                1, big)
       .add_int("model.hidden", 200, "dynamics model hidden width", 1, 100000)
@@ -45,17 +48,40 @@ Config make_train_config() {
       .add_string("policy.activation", "sin", "policy mean head hidden activation", {"sin", "relu"})
       .add_double("sac.gamma", 0.99, "SAC discount", 0.0, 1.0)
       .add_double("sac.tau", 0.005, "SAC target critic Polyak factor", 0.0, 1.0)
-      .add_double("sac.lr", 3e-4, "Adam learning rate of critics, policy and temperature", 1e-8, 1.0)
+      .add_double("sac.lr", 3e-4,
+                  "Adam learning rate of the critics (and of policy and temperature unless set)", 1e-8, 1.0)
+      .add_double("sac.policy_lr", 0.0, "Adam learning rate of the policy (0: sac.lr)", 0.0, 1.0)
+      .add_double("sac.alpha_lr", 0.0, "Adam learning rate of the entropy temperature (0: sac.lr)", 0.0, 1.0)
       .add_int_list("sac.q_hidden", {256, 256}, "critic hidden layer widths", 1, 100000)
       .add_double("sac.initial_alpha", 1.0, "initial entropy temperature", 1e-8, 1e4)
       .add_int("planner.horizon", 5, "planning horizon H (agent steps)", 1, 1000)
       .add_int("planner.samples", 20, "rollouts K of the stochastic planners", 1, 100000)
       .add_double("planner.lambda", 0.1, "temperature lambda of the stochastic planners", 1e-9, 1e12)
+      .add_int(
+          "planner.plan_samples", 20,
+          "hybrid-stochastic: extra rollouts drawn around the warm-started plan with NN-MPPI's noise "
+          "(mppi.sigma, mppi.filter) next to the planner.samples policy rollouts, every sample weighted by "
+          "exp(J / lambda) (0: policy rollouts only, the paper's Alg. 2)",
+          0, 100000)
+      .add_bool(
+          "planner.plan_prior", false,
+          "with plan samples: weight every sample by exp(J / lambda) pi(v | s), the policy's density at "
+          "the sample's state (Theorem 2's bound to the policy), instead of exp(J / lambda) alone")
       .add_bool("planner.density_in_weights", true, "include log p(v) in the stochastic planner's weights")
+      .add_bool("planner.density_tanh_correction", false,
+                "hybrid-stochastic: p(v) is the density of the squashed action tanh(u) (adds -log(1 - v^2)) "
+                "instead of the policy's Gaussian N(mu, Sigma) at u = atanh(v) (false: the authors' choice)")
       .add_double("mppi.sigma", 0.3, "NN-MPPI noise standard deviation", 1e-6, 10.0)
       .add_double("mppi.filter", 0.5, "NN-MPPI low-pass filter coefficient (eta = f eta + (1 - f) eps)", 0.0,
                   0.999)
-      .add_bool("deterministic.clamp_adjoint", false, "clamp rho to [-1, 1] before use (the authors' choice)")
+      .add_bool("deterministic.clamp_adjoint", false,
+                "exact rule: clamp rho to [-1, 1] before use (the bounded rule always clamps)")
+      .add_string(
+          "deterministic.action_rule", "bounded",
+          "hybrid-deterministic's a*: 'exact' = mu + Sigma (dr/da_0 + B_0^T rho_1) (Theorem 1, discrete); "
+          "'bounded' = clip(mu_raw + Sigma (1 - tanh^2 mu_raw) B_0^T clamp(rho_0, -1, 1)) (the authors' "
+          "rule; see DeterministicActionRule). The model-based baseline always uses 'exact'",
+          {"bounded", "exact"})
       .add_double("deterministic.exploration_decay", 0.999,
                   "exploration noise std = decay^t, t counting agent steps (environment interactions)", 0.0,
                   1.0);

@@ -92,7 +92,7 @@ struct Trainer::Impl {
   } pending;
   double ep_return = 0;
   int64_t ep_env_steps = 0, ep_agent_steps = 0, ep_fallbacks_start = 0;
-  Stats ep_mig, critic_loss, actor_loss, alpha, entropy, dyn_loss, rew_loss;
+  Stats ep_mig, ep_ess, ep_saturated, critic_loss, actor_loss, alpha, entropy, dyn_loss, rew_loss;
   double ep_act_seconds = 0, ep_update_seconds = 0, ep_eval_seconds = 0;
   Clock::time_point ep_start;
   double last_return = std::nan(""), last_eval = std::nan("");
@@ -121,6 +121,8 @@ struct Trainer::Impl {
       so.gamma = config.get_double("sac.gamma");
       so.tau = config.get_double("sac.tau");
       so.q_lr = so.policy_lr = so.alpha_lr = config.get_double("sac.lr");
+      if (config.get_double("sac.policy_lr") > 0) so.policy_lr = config.get_double("sac.policy_lr");
+      if (config.get_double("sac.alpha_lr") > 0) so.alpha_lr = config.get_double("sac.alpha_lr");
       so.q_hidden = config.get_int_list("sac.q_hidden");
       so.initial_alpha = config.get_double("sac.initial_alpha");
       so.seed = derive_seed(seed, kSacNoise);
@@ -143,6 +145,14 @@ struct Trainer::Impl {
     if (config.get_bool("eval.components") && method->trains_policy && method->trains_models) {
       evaluators.emplace_back("policy", make_controller("policy", models, config, true));
       evaluators.emplace_back("planner", make_controller(method->planner_controller, models, config, true));
+    }
+    if (config.get_bool("eval.compare_density") && method->controller == "stochastic_hybrid") {
+      // Diagnostic: the same networks planned with the other p(v) (squashed vs Gaussian density).
+      Config other = config;
+      other.set("planner.density_tanh_correction",
+                config.get_bool("planner.density_tanh_correction") ? "false" : "true",
+                "eval.compare_density");
+      evaluators.emplace_back("other_density", make_controller(method->controller, models, other, true));
     }
     next_checkpoint = config.get_int("checkpoint.every");
     update_after = config.get_int("train.update_after");
@@ -170,7 +180,8 @@ struct Trainer::Impl {
     ep_return = 0;
     ep_env_steps = ep_agent_steps = 0;
     ep_fallbacks_start = controller->diagnostics().fallbacks;
-    ep_mig = critic_loss = actor_loss = alpha = entropy = dyn_loss = rew_loss = Stats{};
+    ep_mig = ep_ess = ep_saturated = critic_loss = actor_loss = alpha = entropy = dyn_loss = rew_loss =
+        Stats{};
     ep_act_seconds = ep_update_seconds = ep_eval_seconds = 0;
     ep_start = Clock::now();
   }
@@ -182,6 +193,10 @@ struct Trainer::Impl {
     ep_act_seconds += seconds_since(t0);
     const double mig = controller->diagnostics().mode_insertion_gradient;
     if (std::isfinite(mig)) ep_mig.add(mig);
+    const double ess = controller->diagnostics().weight_ess;
+    if (std::isfinite(ess)) ep_ess.add(ess);
+    const double saturated = controller->diagnostics().saturated_weight;
+    if (std::isfinite(saturated)) ep_saturated.add(saturated);
     if (pending.valid) {
       // The previous transition's next action a' is the one just chosen.
       buffer->add(pending.s.data(), pending.a.data(), pending.r, pending.s2.data(), a.data(), false);
@@ -303,6 +318,8 @@ struct Trainer::Impl {
     const int64_t fallbacks = controller->diagnostics().fallbacks - ep_fallbacks_start;
     log->log(env_steps, "train/fallbacks", static_cast<double>(fallbacks));
     log_if("train/mode_insertion_gradient", ep_mig);
+    log_if("train/weight_ess", ep_ess);
+    log_if("train/saturated_weight", ep_saturated);
     log_if("loss/critic", critic_loss);
     log_if("loss/actor", actor_loss);
     log_if("sac/alpha", alpha);

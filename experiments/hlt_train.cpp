@@ -4,8 +4,9 @@
 //             [--config FILE] [key=value ...]
 //   hlt_train --resume runs/x [--steps N]
 //
-// Settings are resolved in order: declared defaults, experiments/configs/<env>.yaml, --config FILE, the
-// flags above, then key=value overrides. `hlt_train --list` prints every key.
+// Settings are resolved in order: declared defaults, experiments/configs/<env>.yaml, the method's overlay
+// experiments/configs/methods/<method>.yaml (if there is one), --config FILE, the flags above, then
+// key=value overrides. `hlt_train --list` prints every key.
 #include <filesystem>
 #include <iostream>
 #include <optional>
@@ -32,11 +33,12 @@ namespace fs = std::filesystem;
 namespace hlt {
 namespace {
 
-// The env a config file names, if any (needed before the env's default file can be loaded).
-std::optional<std::string> env_in_file(const std::string& path) {
+// The env (or method) a config file names, if any (needed before the env's and the method's default files
+// can be loaded).
+std::optional<std::string> key_in_file(const std::string& path, const char* key) {
   try {
     YAML::Node root = YAML::Load(read_file(path));
-    if (root.IsMap() && root["env"]) return root["env"].as<std::string>();
+    if (root.IsMap() && root[key]) return root[key].as<std::string>();
   } catch (const YAML::Exception& e) {
     throw Error(fmt::format("malformed YAML in {}: {}", path, e.what()));
   }
@@ -93,11 +95,18 @@ int run(int argc, char** argv) {
 
   Config config = make_train_config();
   std::string env_name = env;
-  if (env_name.empty() && !config_file.empty()) env_name = env_in_file(config_file).value_or("");
+  if (env_name.empty() && !config_file.empty()) env_name = key_in_file(config_file, "env").value_or("");
   if (env_name.empty()) env_name = config.get_string("env");
   config.set("env", env_name, "--env");  // validates the name before its file is looked up
   const fs::path env_defaults = fs::path(HLT_CONFIG_DIR) / (env_name + ".yaml");
   if (fs::exists(env_defaults)) config.load_file(env_defaults.string());
+  std::string method_name = method;
+  if (method_name.empty() && !config_file.empty())
+    method_name = key_in_file(config_file, "method").value_or("");
+  if (method_name.empty()) method_name = config.get_string("method");
+  config.set("method", method_name, "--method");  // validates the name before its overlay is looked up
+  const fs::path method_defaults = fs::path(HLT_CONFIG_DIR) / "methods" / (method_name + ".yaml");
+  if (fs::exists(method_defaults)) config.load_file(method_defaults.string());
   if (!config_file.empty()) config.load_file(config_file);
   // The flags come after the file (the documented order), --env included.
   if (!env.empty()) config.set("env", env, "--env");

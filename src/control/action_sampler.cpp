@@ -19,7 +19,8 @@ Eigen::Map<RowMatrix<T>> block(const at::Tensor& t, int64_t offset, int64_t rows
 
 }  // namespace
 
-PolicySampler::PolicySampler(GaussianPolicy policy) : forward_(std::move(policy)) {}
+PolicySampler::PolicySampler(GaussianPolicy policy, bool tanh_correction)
+    : forward_(std::move(policy)), tanh_correction_(tanh_correction) {}
 
 void PolicySampler::begin(int64_t samples, const at::Tensor& plan) {
   forward_.prepare(samples);
@@ -54,9 +55,13 @@ at::Tensor PolicySampler::log_density(const at::Tensor& actions) {
                  ls = block<T>(log_std_, t * m * K, m, K).array(),
                  v = block<T>(actions, t * m * K, m, K).array();
       // u - mu = sigma eps, so the Gaussian term is -eps^2 / 2 - log sigma - log(2 pi) / 2 per dimension; the
-      // tanh change of variables subtracts log(1 - v^2 + 1e-6).
-      const auto per_dim = T(-0.5) * eps.square() - ls - T(kHalfLog2Pi) - (T(1 + 1e-6) - v.square()).log();
-      block<T>(out, t * K, 1, K) = per_dim.colwise().sum().matrix();
+      // tanh change of variables (if asked for) subtracts log(1 - v^2 + 1e-6).
+      const auto gauss = T(-0.5) * eps.square() - ls - T(kHalfLog2Pi);
+      if (tanh_correction_) {
+        block<T>(out, t * K, 1, K) = (gauss - (T(1 + 1e-6) - v.square()).log()).colwise().sum().matrix();
+      } else {
+        block<T>(out, t * K, 1, K) = gauss.colwise().sum().matrix();
+      }
     }
   });
   return out;
@@ -101,6 +106,78 @@ at::Tensor FilteredNoiseSampler::log_density(const at::Tensor& actions) {
               .colwise()
               .sum()
               .matrix();
+    }
+  });
+  return out;
+}
+
+MixtureSampler::MixtureSampler(std::shared_ptr<ActionSampler> first, std::shared_ptr<ActionSampler> second,
+                               int64_t second_samples, GaussianPolicy prior, bool tanh_correction)
+    : first_(std::move(first)),
+      second_(std::move(second)),
+      second_samples_(second_samples),
+      prior_(std::move(prior)),
+      tanh_correction_(tanh_correction) {
+  check(first_ && second_, "mixture sampler: needs two samplers");
+  check(second_samples >= 1, "mixture sampler: second_samples must be >= 1, got {}", second_samples);
+}
+
+void MixtureSampler::begin(int64_t samples, const at::Tensor& plan) {
+  check(samples > second_samples_, "mixture sampler: {} samples, {} of them for the second sampler", samples,
+        second_samples_);
+  first_samples_ = samples - second_samples_;
+  first_->begin(first_samples_, plan);
+  second_->begin(second_samples_, plan);
+  prior_.prepare(samples);
+  const int64_t H = plan.size(0), m = plan.size(1);
+  if (!actions_first_.defined() || actions_first_.size(1) != first_samples_ || actions_first_.size(0) != m ||
+      actions_first_.scalar_type() != plan.scalar_type()) {
+    actions_first_ = torch::empty({m, first_samples_}, plan.options());
+    actions_second_ = torch::empty({m, second_samples_}, plan.options());
+  }
+  if (!mean_.defined() || mean_.sizes() != at::IntArrayRef({H, m, samples}) ||
+      mean_.scalar_type() != plan.scalar_type()) {
+    mean_ = torch::empty({H, m, samples}, plan.options());
+    log_std_ = torch::empty({H, m, samples}, plan.options());
+  }
+}
+
+void MixtureSampler::sample(int64_t t, const at::Tensor& states, const at::Tensor& plan_t,
+                            at::Tensor& actions) {
+  const at::Tensor s1 = states.narrow(1, 0, first_samples_).contiguous();
+  const at::Tensor s2 = states.narrow(1, first_samples_, second_samples_).contiguous();
+  first_->sample(t, s1, plan_t, actions_first_);
+  second_->sample(t, s2, plan_t, actions_second_);
+  actions.narrow(1, 0, first_samples_).copy_(actions_first_);
+  actions.narrow(1, first_samples_, second_samples_).copy_(actions_second_);
+  // The prior at every rollout's state.
+  prior_.forward(states);
+  dispatch_floating(actions, [&](auto tag) {
+    using T = decltype(tag);
+    const int64_t m = actions.size(0), K = actions.size(1);
+    block<T>(mean_, t * m * K, m, K) = row_map<T>(prior_.mean());
+    block<T>(log_std_, t * m * K, m, K) = row_map<T>(prior_.log_std());
+  });
+}
+
+at::Tensor MixtureSampler::log_density(const at::Tensor& actions) {
+  const int64_t H = actions.size(0), m = actions.size(1), K = actions.size(2);
+  at::Tensor out = torch::empty({H, K}, actions.options());
+  dispatch_floating(actions, [&](auto tag) {
+    using T = decltype(tag);
+    const T edge = T(1) - T(1e-6);
+    for (int64_t t = 0; t < H; ++t) {
+      const auto v = block<T>(actions, t * m * K, m, K).array().max(-edge).min(edge);
+      const auto mu = block<T>(mean_, t * m * K, m, K).array(),
+                 ls = block<T>(log_std_, t * m * K, m, K).array();
+      // atanh(v) = log((1 + v) / (1 - v)) / 2
+      const auto u = T(0.5) * ((T(1) + v) / (T(1) - v)).log();
+      const auto gauss = T(-0.5) * ((u - mu) * (-ls).exp()).square() - ls - T(kHalfLog2Pi);
+      if (tanh_correction_) {
+        block<T>(out, t * K, 1, K) = (gauss - (T(1 + 1e-6) - v.square()).log()).colwise().sum().matrix();
+      } else {
+        block<T>(out, t * K, 1, K) = gauss.colwise().sum().matrix();
+      }
     }
   });
   return out;

@@ -96,6 +96,7 @@ const AdjointTrace& DeterministicHybrid::analyse(const at::Tensor& state) {
     models_.prepare(1);
     if (has_policy) policy_forward_->prepare(1);
     Eigen::VectorXd log_std0 = Eigen::VectorXd::Zero(m);
+    tr.mean_raw = Eigen::VectorXd::Zero(m);
     dispatch_floating(X_, [&](auto tag) {
       using T = decltype(tag);
       row_map<T>(A_).setZero();
@@ -103,7 +104,10 @@ const AdjointTrace& DeterministicHybrid::analyse(const at::Tensor& state) {
         if (has_policy) {
           policy_forward_->forward(x_cols_[t]);
           row_map<T>(a_cols_[t]) = row_map<T>(policy_forward_->mean()).array().tanh().matrix();
-          if (t == 0) log_std0 = row_map<T>(policy_forward_->log_std()).col(0).template cast<double>();
+          if (t == 0) {
+            log_std0 = row_map<T>(policy_forward_->log_std()).col(0).template cast<double>();
+            tr.mean_raw = row_map<T>(policy_forward_->mean()).col(0).template cast<double>();
+          }
         }
         models_.step(x_cols_[t], a_cols_[t], x_cols_[t + 1], nullptr);
       }
@@ -129,7 +133,15 @@ const AdjointTrace& DeterministicHybrid::analyse(const at::Tensor& state) {
   // 4. The best action (Theorem 1, discrete): mu(s0) + Sigma(s0) (dr/da|_0 + B_0^T rho_1).
   tr.dreturn_da0 = J.ra.row(0).transpose() + J.fa.middleRows(0, n).transpose() * adjoint_used(1);
   tr.mean_action = tr.actions.row(0).transpose();
-  tr.action = tr.mean_action + tr.sigma.cwiseProduct(tr.dreturn_da0);
+  if (options_.rule == DeterministicActionRule::kBounded) {
+    // mu_raw + Sigma (1 - tanh^2(mu_raw)) B_0^T clamp(rho_0, -1, 1).
+    const Eigen::VectorXd rho0 = tr.rho.row(0).transpose().cwiseMax(-1.0).cwiseMin(1.0);
+    const Eigen::VectorXd dtanh = (1.0 - tr.mean_raw.array().tanh().square()).matrix();
+    const Eigen::VectorXd correction = dtanh.cwiseProduct(J.fa.middleRows(0, n).transpose() * rho0);
+    tr.action = tr.mean_raw + tr.sigma.cwiseProduct(correction);
+  } else {
+    tr.action = tr.mean_action + tr.sigma.cwiseProduct(tr.dreturn_da0);
+  }
   return tr;
 }
 

@@ -97,6 +97,12 @@ at::Tensor StochasticHybrid::compute_action(const at::Tensor& state) {
       plan.row(t) += ((v.colwise() - plan.row(t).transpose()) * w.row(t).transpose()).transpose();
     }
     finite = plan.allFinite();
+    // Diagnostics of step 0's weights: effective sample size and the weight on saturated actions.
+    diagnostics_.weight_ess = 1.0 / static_cast<double>(w.row(0).squaredNorm());
+    Eigen::Map<const RowMatrix<T>> v0(samples_.data_ptr<T>(), m, K);
+    const Eigen::Matrix<T, 1, Eigen::Dynamic> max_abs = v0.array().abs().colwise().maxCoeff();
+    diagnostics_.saturated_weight =
+        static_cast<double>((max_abs.array() > T(0.99)).select(w.row(0).array(), T(0)).sum());
   });
   at::Tensor action = plan_rows_[0].clone();
   // Do not carry a poisoned plan into the next step; the base class substitutes the fallback action.

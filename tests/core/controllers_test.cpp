@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 #include <torch/torch.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "hlt/control/action_sampler.h"
@@ -179,6 +180,70 @@ TEST(DeterministicHybrid, ExplorationDecaysAndSeedIsDeterministic) {
   EXPECT_GT(std::abs(run(6, 0) - a_star), 1e-4);
 }
 
+// The bounded rule against a hand computation: a* = mu_raw + Sigma (1 - tanh^2(mu_raw)) B_0^T clamp(rho_0,
+// -1, 1), with B_0 = df/da at (s0, mu(s0)) by finite differences and rho_0 the (separately tested) exact
+// adjoint.
+TEST(DeterministicHybrid, BoundedRuleMatchesHandComputationAndRespectsClamps) {
+  for (uint64_t seed : {13, 14, 15}) {
+    const int n = 3, m = 2;
+    Models md = random_models(n, m, seed, 0.3);
+    {
+      // A steep reward so that the adjoint leaves [-1, 1] and the clamps matter.
+      torch::NoGradGuard g;
+      md.reward->fc3->weight.mul_(50.0);
+    }
+    DeterministicHybridOptions o{5, false, 0.999, false};
+    o.rule = DeterministicActionRule::kBounded;
+    DeterministicHybrid ctrl(md.policy, md.dynamics, md.reward, o);
+    auto s0 = torch::randn({n}, torch::kFloat64);
+    const auto executed = ctrl.act(s0);
+    const AdjointTrace& tr = ctrl.trace();
+    ASSERT_GT(tr.rho.row(0).cwiseAbs().maxCoeff(), 1.0) << "the test needs an adjoint outside [-1, 1]";
+    // mu_raw is the policy's pre-tanh mean.
+    const auto [mean, log_std] = md.policy->forward(s0.unsqueeze(0));
+    for (int j = 0; j < m; ++j) {
+      EXPECT_NEAR(tr.mean_raw[j], mean[0][j].item<double>(), 1e-12);
+      EXPECT_NEAR(tr.mean_action[j], std::tanh(tr.mean_raw[j]), 1e-12);
+      EXPECT_NEAR(tr.sigma[j], std::exp(2 * log_std[0][j].item<double>()), 1e-12);
+    }
+    auto mu = md.policy->mean_action(s0.unsqueeze(0)).squeeze(0).detach();
+    for (int j = 0; j < m; ++j) {
+      // B_0^T clamp(rho_0) in direction j: d/da_j of clamp(rho_0)^T f(s0, a).
+      Eigen::VectorXd rho0 = tr.rho.row(0).transpose().cwiseMax(-1.0).cwiseMin(1.0);
+      auto rho_t = torch::from_blob(rho0.data(), {n}, torch::kFloat64).clone();
+      auto fd = testing::finite_difference_gradient(
+          [&](const torch::Tensor& a) {
+            return (md.dynamics->forward(s0.view({1, -1}), a.view({1, -1})).squeeze(0) * rho_t).sum();
+          },
+          mu);
+      const double dtanh = 1.0 - std::pow(std::tanh(tr.mean_raw[j]), 2);
+      const double expected = tr.mean_raw[j] + tr.sigma[j] * dtanh * fd[j].item<double>();
+      EXPECT_NEAR(tr.action[j], expected, 1e-6) << "seed " << seed << " dim " << j;
+      // The executed action (no exploration) is a* clipped to [-1, 1].
+      EXPECT_NEAR(executed[j].item<double>(), std::clamp(expected, -1.0, 1.0), 1e-6);
+      EXPECT_LE(std::abs(executed[j].item<double>()), 1.0);
+    }
+    // The clamp bounds the correction: |a* - mu_raw| <= Sigma (1 - tanh^2) sum_i |B_0[i, j]|.
+    Eigen::VectorXd x0 = tr.states.row(0).transpose();
+    const ModelJacobians J = model_jacobians(md.dynamics, md.reward, md.policy,
+                                             torch::from_blob(x0.data(), {1, n}, torch::kFloat64).clone(),
+                                             mu.detach().view({1, m}).clone());
+    for (int j = 0; j < m; ++j) {
+      const double bound =
+          tr.sigma[j] * (1.0 - std::pow(std::tanh(tr.mean_raw[j]), 2)) * J.fa.col(j).cwiseAbs().sum();
+      EXPECT_LE(std::abs(tr.action[j] - tr.mean_raw[j]), bound + 1e-9);
+    }
+    // The exact rule on the same models moves much further: the bound is what the clamp buys.
+    DeterministicHybrid exact(md.policy, md.dynamics, md.reward,
+                              DeterministicHybridOptions{5, false, 0.999, false});
+    exact.analyse(s0);
+    EXPECT_GT((exact.trace().action - exact.trace().mean_action).cwiseAbs().maxCoeff(),
+              (tr.action - tr.mean_raw).cwiseAbs().maxCoeff());
+    // The mode insertion gradient is still reported against the policy's action tanh(mu_raw).
+    EXPECT_TRUE(std::isfinite(ctrl.diagnostics().mode_insertion_gradient));
+  }
+}
+
 // One state, one action: s' = s (the model cannot move), r(s, a) = -|s + a - goal|. The best action at every
 // step is goal - s, so the optimal plan is constant and known.
 Models known_answer_models(double goal) {
@@ -268,6 +333,147 @@ TEST(StochasticHybrid, WeightsAreFiniteNormalisedAndFollowTheFormula) {
   hybrid.act(torch::randn({3}, torch::kFloat64));
   EXPECT_TRUE(torch::isfinite(hybrid.weights()).all().item<bool>());
   EXPECT_TRUE(torch::allclose(hybrid.weights().sum(1), torch::ones({6}, torch::kFloat64)));
+}
+
+// Without the tanh correction the weights use the policy's Gaussian N(mu, Sigma) at the pre-tanh sample u.
+TEST(StochasticHybrid, GaussianDensityIsThePolicysGaussianAtThePreTanhSample) {
+  torch::manual_seed(4);
+  Models md = random_models(3, 2, 22, -0.5);
+  const double lambda = 0.5;
+  StochasticHybrid squashed(std::make_shared<PolicySampler>(md.policy, true), md.dynamics, md.reward,
+                            StochasticHybridOptions{3, 40, lambda, true, 0.0}, md.policy);
+  StochasticHybrid gaussian(std::make_shared<PolicySampler>(md.policy, false), md.dynamics, md.reward,
+                            StochasticHybridOptions{3, 40, lambda, true, 0.0}, md.policy);
+  const auto s0 = torch::randn({3}, torch::kFloat64);
+  torch::manual_seed(5);
+  squashed.act(s0);
+  torch::manual_seed(5);
+  gaussian.act(s0);
+  torch::NoGradGuard g;
+  // The same random numbers: the same samples; the densities differ by exactly the tanh term.
+  ASSERT_TRUE(torch::allclose(squashed.samples(), gaussian.samples(), 0, 0));
+  auto V = gaussian.samples();  // [H, K, m]
+  auto tanh_term = (1 + 1e-6 - V.square()).log().sum(-1);
+  EXPECT_TRUE(torch::allclose(gaussian.log_density() - tanh_term, squashed.log_density(), 1e-9, 1e-9));
+  // Step 0 (all samples at s0): log N(atanh(v); mu(s0), Sigma(s0)).
+  const auto [mean, log_std] = md.policy->forward(s0.unsqueeze(0));
+  auto u = torch::atanh(V[0]);
+  auto expected = (-0.5 * ((u - mean) / log_std.exp()).square() - log_std - 0.5 * std::log(2 * M_PI)).sum(-1);
+  EXPECT_TRUE(torch::allclose(gaussian.log_density()[0], expected, 1e-6, 1e-6));
+  // The weights follow exp(J / lambda) p(v) with that density.
+  auto s = s0.unsqueeze(0).expand({40, 3});
+  std::vector<torch::Tensor> r;
+  for (int t = 0; t < 3; ++t) {
+    r.push_back(md.reward->forward(s, V[t]).squeeze(-1));
+    s = md.dynamics->forward(s, V[t]);
+  }
+  auto J = torch::stack(r).flip(0).cumsum(0).flip(0);
+  EXPECT_TRUE(torch::allclose(gaussian.weights(), torch::softmax(J / lambda + gaussian.log_density(), 1),
+                              1e-9, 1e-12));
+  // Diagnostics: the effective sample size is 1 / sum w^2 of step 0, the saturated weight in [0, 1].
+  auto w0 = gaussian.weights()[0];
+  EXPECT_NEAR(gaussian.diagnostics().weight_ess, 1.0 / w0.square().sum().item<double>(), 1e-9);
+  EXPECT_GE(gaussian.diagnostics().weight_ess, 1.0 - 1e-12);
+  EXPECT_LE(gaussian.diagnostics().weight_ess, 40.0 + 1e-9);
+  auto sat = (V[0].abs() > 0.99).any(-1).to(torch::kFloat64);
+  EXPECT_NEAR(gaussian.diagnostics().saturated_weight, (w0 * sat).sum().item<double>(), 1e-12);
+}
+
+// The mixture: the first K1 rollouts are the policy sampler's own draws, the rest NN-MPPI's noise around the
+// plan; every sample's log-density is the policy's Gaussian at atanh(v) at that sample's rollout state.
+TEST(StochasticHybrid, MixtureSamplerSplitsTheRolloutsAndScoresAllByThePolicy) {
+  Models md = random_models(3, 1, 23, -0.5);
+  const auto s0 = torch::randn({3}, torch::kFloat64);
+  torch::manual_seed(8);
+  StochasticHybrid alone(std::make_shared<PolicySampler>(md.policy, false), md.dynamics, md.reward,
+                         StochasticHybridOptions{4, 12, 0.5, true, 0.0}, md.policy);
+  alone.act(s0);
+  torch::manual_seed(8);
+  auto mixture =
+      std::make_shared<MixtureSampler>(std::make_shared<PolicySampler>(md.policy, false),
+                                       std::make_shared<FilteredNoiseSampler>(0.3, 0.5), 5, md.policy);
+  const double lambda = 0.5;
+  StochasticHybrid mixed(mixture, md.dynamics, md.reward, StochasticHybridOptions{4, 17, lambda, true, 0.0},
+                         md.policy);
+  mixed.act(s0);
+  // The same first random draws: the policy part is identical (its rollouts do not depend on the others),
+  // and so is its log-density (up to the atanh round trip).
+  EXPECT_TRUE(torch::allclose(mixed.samples().narrow(1, 0, 12), alone.samples(), 0, 0));
+  EXPECT_TRUE(torch::allclose(mixed.log_density().narrow(1, 0, 12), alone.log_density(), 1e-6, 1e-6));
+  // The noise part: step 0 is the (zero) plan plus 0.5 * 0.3 * z, inside [-1, 1].
+  auto V = mixed.samples();  // [H, K, m]
+  auto noise = V.narrow(1, 12, 5);
+  EXPECT_LE(noise.abs().max().item<double>(), 1.0);
+  EXPECT_LT(noise[0].abs().max().item<double>(), 0.15 * 6);
+  // Every sample's density and weight by hand: roll the models forward, the policy's Gaussian at each state.
+  torch::NoGradGuard g;
+  auto s = s0.unsqueeze(0).expand({17, 3}).clone();
+  std::vector<torch::Tensor> r, lp;
+  for (int t = 0; t < 4; ++t) {
+    const auto [mean, log_std] = md.policy->forward(s);
+    auto u = torch::atanh(V[t].clamp(-1 + 1e-6, 1 - 1e-6));
+    lp.push_back((-0.5 * ((u - mean) / log_std.exp()).square() - log_std - 0.5 * std::log(2 * M_PI)).sum(-1));
+    r.push_back(md.reward->forward(s, V[t]).squeeze(-1));
+    s = md.dynamics->forward(s, V[t]);
+  }
+  auto log_p = torch::stack(lp);
+  EXPECT_TRUE(torch::allclose(mixed.log_density(), log_p, 1e-6, 1e-6)) << mixed.log_density() << log_p;
+  auto J = torch::stack(r).flip(0).cumsum(0).flip(0);
+  EXPECT_TRUE(torch::allclose(mixed.weights(), torch::softmax(J / lambda + log_p, 1), 1e-6, 1e-9));
+  // The first sampler needs at least one rollout.
+  StochasticHybrid too_few(mixture, md.dynamics, md.reward, StochasticHybridOptions{4, 5, 0.5, true, 0.0},
+                           md.policy);
+  EXPECT_THROW(too_few.act(s0), std::exception);
+}
+
+// A policy far from the optimum. The policy sampler alone cannot leave it; with samples around the
+// warm-started plan and flat weights the planner walks to the known optimum goal - s; with the policy's
+// density in the weights (Theorem 2's bound) a confident policy keeps the plan, a broad one lets it go.
+GaussianPolicy constant_policy(double mean_raw, double log_std) {
+  auto policy = GaussianPolicy(GaussianPolicyOptions{1, 1, {8}, Activation::kSin});
+  torch::NoGradGuard g;
+  auto mean_last = policy->mean_layers[1]->as<torch::nn::Linear>();
+  mean_last->weight.zero_();
+  mean_last->bias.fill_(mean_raw);
+  policy->log_std_layers[1]->as<torch::nn::Linear>()->weight.zero_();
+  policy->log_std_layers[1]->as<torch::nn::Linear>()->bias.fill_(log_std);
+  return policy;
+}
+
+TEST(StochasticHybrid, PlanSamplesLetTheModelsLeaveAPoorPolicy) {
+  torch::manual_seed(9);
+  Models md = known_answer_models(0.5);
+  const auto s0 = torch::tensor({-0.2f});
+  auto average_action = [&](GaussianPolicy policy, int64_t plan_samples, bool density) {
+    std::shared_ptr<ActionSampler> sampler = std::make_shared<PolicySampler>(policy, false);
+    if (plan_samples > 0) {
+      sampler = std::make_shared<MixtureSampler>(sampler, std::make_shared<FilteredNoiseSampler>(0.5, 0.0),
+                                                 plan_samples, policy);
+    }
+    StochasticHybrid h(sampler, md.dynamics, md.reward,
+                       StochasticHybridOptions{1, 40 + plan_samples, 0.01, density, 1e-5}, policy);
+    double sum = 0;
+    for (int i = 0; i < 100; ++i) {
+      const double a = h.act(s0)[0].item<double>();
+      if (i >= 50) sum += a;
+    }
+    return sum / 50;
+  };
+  const auto confident = constant_policy(-1.0, -4.0);                       // tanh(-1) = -0.76, std 0.018
+  const auto broad = constant_policy(-1.0, 0.0);                            // std 1 before the tanh
+  EXPECT_NEAR(average_action(confident, 0, true), std::tanh(-1.0), 0.05);   // stuck at the policy
+  EXPECT_NEAR(average_action(confident, 40, false), 0.7, 0.08);             // goal - s = 0.5 - (-0.2)
+  EXPECT_NEAR(average_action(confident, 40, true), std::tanh(-1.0), 0.05);  // the bound holds the plan
+  EXPECT_NEAR(average_action(broad, 40, true), 0.7, 0.08);                  // the models decide
+}
+
+TEST(StochasticHybrid, UniformWeightsHaveFullEffectiveSampleSize) {
+  torch::manual_seed(6);
+  Models md = random_models(2, 1, 32);
+  StochasticHybrid h(std::make_shared<PolicySampler>(md.policy, false), md.dynamics, md.reward,
+                     StochasticHybridOptions{3, 25, 1e12, false, 0.0}, md.policy);
+  h.act(torch::randn({2}, torch::kFloat64));
+  EXPECT_NEAR(h.diagnostics().weight_ess, 25.0, 1e-9);
 }
 
 TEST(StochasticHybrid, InfiniteTemperatureGivesMeanPerturbationAndPlanShifts) {

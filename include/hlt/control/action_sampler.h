@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 
 #include <ATen/core/Tensor.h>
 
@@ -29,16 +30,21 @@ class ActionSampler {
   virtual at::Tensor log_density(const at::Tensor& actions) = 0;
 };
 
-// v ~ pi(.|s) at every rollout's own state (closed loop); log-density with the tanh correction.
+// v = tanh(u), u ~ N(mu(s), Sigma(s)) at every rollout's own state (closed loop). The reported log-density
+// is that of the Gaussian pi = N(mu, Sigma) the paper's Theorem 2 weights with (the authors' code too), at
+// the pre-tanh sample u; with `tanh_correction` it is the density of the squashed action v instead, which
+// adds -log(1 - v^2 + 1e-6) per dimension: up to +13.8 for a saturated action, so that a weight exp(J /
+// lambda) p(v) then prefers saturated samples whatever their predicted return.
 class PolicySampler : public ActionSampler {
  public:
-  explicit PolicySampler(GaussianPolicy policy);
+  explicit PolicySampler(GaussianPolicy policy, bool tanh_correction = true);
   void begin(int64_t samples, const at::Tensor& plan) override;
   void sample(int64_t t, const at::Tensor& states, const at::Tensor& plan_t, at::Tensor& actions) override;
   at::Tensor log_density(const at::Tensor& actions) override;
 
  private:
   PolicyForward forward_;
+  bool tanh_correction_;
   at::Tensor eps_, log_std_;  // [H, m, K]: standard normal draws and the log-std each was scaled by
 };
 
@@ -54,6 +60,32 @@ class FilteredNoiseSampler : public ActionSampler {
  private:
   double sigma_, filter_;
   at::Tensor z_, eta_;
+};
+
+// Two proposals side by side: the first K - second_samples rollouts draw from `first` (the policy), the last
+// `second_samples` from `second` (NN-MPPI's noise around the warm-started plan). Every sample, whichever
+// proposal drew it, is scored by the same p(v) = pi(v | s_t) of `prior` (the policy) at the sample's own
+// rollout state: the Gaussian N(mu, Sigma) at u = atanh(v) (v clipped to +-(1 - 1e-6)), with the tanh
+// correction if asked for. In the weights exp(J / lambda) p(v) this is Theorem 2's bound that ties the plan
+// to the policy: a plan sample far from a confident policy needs a much higher predicted return to win,
+// while under a broad (or poor, uncertain) policy the models decide. With the policy first this lets the
+// models keep and improve a plan of their own (the policy sampler alone ignores the warm start:
+// a + sum w (v - a) = sum w v).
+class MixtureSampler : public ActionSampler {
+ public:
+  MixtureSampler(std::shared_ptr<ActionSampler> first, std::shared_ptr<ActionSampler> second,
+                 int64_t second_samples, GaussianPolicy prior, bool tanh_correction = false);
+  void begin(int64_t samples, const at::Tensor& plan) override;
+  void sample(int64_t t, const at::Tensor& states, const at::Tensor& plan_t, at::Tensor& actions) override;
+  at::Tensor log_density(const at::Tensor& actions) override;
+
+ private:
+  std::shared_ptr<ActionSampler> first_, second_;
+  int64_t second_samples_, first_samples_ = 0;
+  PolicyForward prior_;
+  bool tanh_correction_;
+  at::Tensor actions_first_, actions_second_;  // [m, K1], [m, K2]
+  at::Tensor mean_, log_std_;                  // [H, m, K]: the prior at every rollout state
 };
 
 }  // namespace hlt

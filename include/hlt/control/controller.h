@@ -19,6 +19,11 @@ namespace hlt {
 struct ControllerDiagnostics {
   // Mode insertion gradient of the last step (deterministic hybrid controllers); NaN when not defined.
   double mode_insertion_gradient = std::numeric_limits<double>::quiet_NaN();
+  // Stochastic planners, step 0 of the last call: the effective number of samples 1 / sum_k w_k^2 (1: the
+  // weights sit on one sample, K: uniform) and the weight on samples with a saturated action (|v| > 0.99 in
+  // some dimension). NaN when not defined.
+  double weight_ess = std::numeric_limits<double>::quiet_NaN();
+  double saturated_weight = std::numeric_limits<double>::quiet_NaN();
   bool fell_back = false;  // the last step used the fallback action
   int64_t fallbacks = 0;   // fallback steps since construction
 };

@@ -3,10 +3,11 @@
 // From the observed s0 it rolls the learned dynamics forward under the policy mean, gets every Jacobian it
 // needs by autograd (all H steps in one batched backward pass), sweeps the adjoint backwards,
 // rho_t = g_t + A_t^T rho_{t+1} with rho_H = 0, A_t = df/ds + df/da dmu/ds, g_t = dr/ds + dr/da dmu/ds, and
-// applies a* = mu(s0) + Sigma(s0) (dr/da|_0 + B_0^T rho_1) + eps, clipped to [-1, 1], where
-// eps ~ N(0, decay^t) over all environment interactions t (agent steps). It reports the mode insertion gradient
-// (r(s0, a*) - r(s0, mu(s0))) + rho_1^T (f(s0, a*) - f(s0, mu(s0))).
-// Without a policy (mu = 0, Sigma = I) it is the model-based deterministic baseline.
+// applies a* = mu(s0) + Sigma(s0) (dr/da|_0 + B_0^T rho_1) + eps, clipped to [-1, 1] (the exact rule; see
+// DeterministicActionRule for the bounded rule the training config uses by default), where
+// eps ~ N(0, decay^t) over all environment interactions t (agent steps). It reports the mode insertion
+// gradient (r(s0, a*) - r(s0, mu(s0))) + rho_1^T (f(s0, a*) - f(s0, mu(s0))). Without a policy (mu = 0, Sigma
+// = I) it is the model-based deterministic baseline.
 #pragma once
 
 #include <optional>
@@ -21,6 +22,25 @@
 
 namespace hlt {
 
+// How much of the exact adjoint reaches the action.
+enum class DeterministicActionRule {
+  // The paper's Theorem 1 in discrete time: a* = mu(s0) + Sigma(s0) (dr/da|_0 + B_0^T rho_1), mu =
+  // tanh(mu_raw),
+  // rho clamped only if clamp_adjoint. The correction is the exact derivative of the predicted return scaled
+  // by the variance; early in training it is tens of units wide and saturates a*.
+  kExact,
+  // The authors' rule (their deter_wrapper_v1.py), a bounded reading of Theorem 1's local validity:
+  // a* = mu_raw + Sigma (1 - tanh^2(mu_raw)) B_0^T clamp(rho_0, -1, 1), then clipped to [-1, 1]. It differs
+  // from a* = Sigma h^T rho + mu in three ways: rho is clamped to [-1, 1] elementwise (always, whatever
+  // clamp_adjoint says); the derivative is taken w.r.t. the pre-tanh mean u (the Gaussian the variance
+  // Sigma belongs to), hence the factor 1 - tanh^2(mu_raw), and added to mu_raw, not to tanh(mu_raw); and h^T
+  // rho
+  // is evaluated with the adjoint at the switch time, rho_0 (the continuous-time Theorem 1's rho(tau)),
+  // without the separate dr/da|_0 term of the exact discrete derivative. The exact rho is still computed
+  // (trace().rho, dreturn_da0) and the mode insertion gradient still uses it.
+  kBounded,
+};
+
 struct DeterministicHybridOptions {
   int64_t horizon = 5;
   // The authors clamp rho to [-1, 1] before use; off by default (the unclamped rho is the exact gradient).
@@ -29,6 +49,7 @@ struct DeterministicHybridOptions {
   // 0.999 in the paper).
   double exploration_decay = 0.999;
   bool explore = true;
+  DeterministicActionRule rule = DeterministicActionRule::kExact;
 };
 
 // Everything the adjoint sweep computed for the last state, for tests and diagnostics. Row-major Eigen
@@ -39,7 +60,8 @@ struct AdjointTrace {
   Eigen::MatrixXd rho;          // [H + 1, n] rho_0..rho_H (rho_H = 0)
   Eigen::VectorXd dreturn_da0;  // [m] dr/da|_0 + B_0^T rho_1: derivative of the predicted return w.r.t. a_0
   Eigen::VectorXd sigma;        // [m] the policy variance at s0 (ones without a policy)
-  Eigen::VectorXd mean_action;  // [m] mu(s0)
+  Eigen::VectorXd mean_action;  // [m] mu(s0) = tanh(mu_raw(s0)) (zero without a policy)
+  Eigen::VectorXd mean_raw;     // [m] mu_raw(s0), the policy's pre-tanh mean (zero without a policy)
   Eigen::VectorXd action;       // [m] a* before exploration noise and clipping
 };
 
