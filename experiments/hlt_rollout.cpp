@@ -228,7 +228,8 @@ int run(Options o, bool frame_skip_given) {
   std::optional<Demonstrations> demos;
   if (!o.demos.empty())
     demos.emplace(o.env, env->observation_dim(), env->action_dim(), o.frame_skip, policy->describe());
-  FrameRecorder recorder(o.video, std::max(1.0, std::round(1.0 / env->dt())), o.strip_frames);
+  const double fps = std::max(1.0, std::round(1.0 / env->dt()));
+  FrameRecorder recorder(o.video, fps, o.strip_frames);
   std::vector<EpisodeStats> episodes;
   for (int ep = 0; ep < o.episodes; ++ep) {
     const bool record = recording && ep < o.record_episodes;
@@ -276,8 +277,7 @@ int run(Options o, bool frame_skip_given) {
   }
   if (!o.video.empty() && recorder.frames() > 0) {
     if (recorder.finish_video()) {
-      fmt::print("wrote {} ({} frames at {} fps)\n", o.video, recorder.frames(),
-                 std::max(1.0, std::round(1.0 / env->dt())));
+      fmt::print("wrote {} ({} frames at {} fps)\n", o.video, recorder.frames(), fps);
     } else {
       const std::string fallback = replace_extension(o.video, "png");
       write_png(fallback, image_strip(recorder.strip_frames(), o.strip_frames));
