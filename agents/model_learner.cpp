@@ -15,13 +15,15 @@ ModelLearner::ModelLearner(DynamicsModel dynamics, RewardModel reward, const Mod
 }
 
 ModelLosses ModelLearner::update(const Batch& b) {
-  torch::Tensor loss_f = dynamics_->loss(b.states, b.actions, b.next_states);
-  torch::Tensor loss_r = reward_->td_loss(b.states, b.actions, b.rewards, b.next_states, b.next_actions,
-                                          b.dones, options_.reward_gamma);
-  optimizer_->zero_grad();
-  (loss_f + options_.reward_weight * loss_r).backward();
+  // Both backward passes are written by hand (no autograd graph): each writes its own parameters'
+  // gradients, so the flat gradient buffer needs no zeroing.
+  ModelLosses losses;
+  losses.dynamics = dynamics_->loss_with_gradient(b.states, b.actions, b.next_states);
+  losses.reward =
+      reward_->td_loss_with_gradient(b.states, b.actions, b.rewards, b.next_states, b.next_actions, b.dones,
+                                     options_.reward_gamma, options_.reward_weight);
   optimizer_->step();
-  return {loss_f.item<double>(), loss_r.item<double>()};
+  return losses;
 }
 
 void ModelLearner::save(CheckpointWriter& w) const {

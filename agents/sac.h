@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "hlt/data/replay_buffer.h"
+#include "hlt/nn/dense_layers.h"
 #include "hlt/nn/flat_adam.h"
 #include "hlt/nn/gaussian_policy.h"
 #include "hlt/nn/twin_q_network.h"
@@ -46,10 +47,13 @@ class Sac {
  public:
   Sac(GaussianPolicy policy, int64_t state_dim, int64_t action_dim, const SacOptions& options);
 
-  // One gradient step of the critics, the policy and the temperature on `batch`.
+  // One gradient step of the critics, the policy and the temperature on `batch`. The gradients are
+  // written by hand-written backward passes (tested against autograd's in tests/agents/sac_test.cpp).
   SacLosses update(const Batch& batch);
 
   GaussianPolicy& policy() { return policy_; }
+  // The critics (their .grad()s hold the last update's critic gradient): for tests and analysis.
+  TwinQNetwork& critics() { return critics_; }
   double alpha() const;
 
   // Everything: policy, critics, targets, temperature, optimizers.
@@ -68,6 +72,7 @@ class Sac {
   std::unique_ptr<FlatAdam> q_opt_, policy_opt_, alpha_opt_;
   torch::Tensor target_flat_;  // the target critics' parameters, in the critics' flat order
   at::Generator generator_;
+  DenseStack mean_pass_, log_std_pass_;  // the policy's two heads, for the hand-written actor gradient
 };
 
 }  // namespace hlt

@@ -128,18 +128,13 @@ void MixtureSampler::begin(int64_t samples, const at::Tensor& plan) {
   first_samples_ = samples - second_samples_;
   first_->begin(first_samples_, plan);
   second_->begin(second_samples_, plan);
-  prior_.prepare(samples);
-  const int64_t H = plan.size(0), m = plan.size(1);
+  const int64_t m = plan.size(1);
   if (!actions_first_.defined() || actions_first_.size(1) != first_samples_ || actions_first_.size(0) != m ||
       actions_first_.scalar_type() != plan.scalar_type()) {
     actions_first_ = torch::empty({m, first_samples_}, plan.options());
     actions_second_ = torch::empty({m, second_samples_}, plan.options());
   }
-  if (!mean_.defined() || mean_.sizes() != at::IntArrayRef({H, m, samples}) ||
-      mean_.scalar_type() != plan.scalar_type()) {
-    mean_ = torch::empty({H, m, samples}, plan.options());
-    log_std_ = torch::empty({H, m, samples}, plan.options());
-  }
+  horizon_ = plan.size(0);
 }
 
 void MixtureSampler::sample(int64_t t, const at::Tensor& states, const at::Tensor& plan_t,
@@ -150,26 +145,32 @@ void MixtureSampler::sample(int64_t t, const at::Tensor& states, const at::Tenso
   second_->sample(t, s2, plan_t, actions_second_);
   actions.narrow(1, 0, first_samples_).copy_(actions_first_);
   actions.narrow(1, first_samples_, second_samples_).copy_(actions_second_);
-  // The prior at every rollout's state.
-  prior_.forward(states);
-  dispatch_floating(actions, [&](auto tag) {
-    using T = decltype(tag);
-    const int64_t m = actions.size(0), K = actions.size(1);
-    block<T>(mean_, t * m * K, m, K) = row_map<T>(prior_.mean());
-    block<T>(log_std_, t * m * K, m, K) = row_map<T>(prior_.log_std());
-  });
+  // Kept for the prior in log_density().
+  const int64_t K = states.size(1);
+  if (!states_.defined() || states_.size(0) != states.size(0) || states_.size(1) != horizon_ * K ||
+      states_.scalar_type() != states.scalar_type()) {
+    states_ = torch::empty({states.size(0), horizon_ * K}, states.options());
+  }
+  states_.narrow(1, t * K, K).copy_(states);
 }
 
 at::Tensor MixtureSampler::log_density(const at::Tensor& actions) {
   const int64_t H = actions.size(0), m = actions.size(1), K = actions.size(2);
+  check(states_.defined() && states_.size(1) == H * K,
+        "mixture sampler: log_density before a full sampling pass");
+  // The prior at every rollout state of every step in one pass; [m, H K] -> [H, m, K].
+  prior_.prepare(H * K);
+  prior_.forward(states_);
+  const at::Tensor mean = prior_.mean().view({m, H, K}).permute({1, 0, 2}).contiguous();
+  const at::Tensor log_std = prior_.log_std().view({m, H, K}).permute({1, 0, 2}).contiguous();
   at::Tensor out = torch::empty({H, K}, actions.options());
   dispatch_floating(actions, [&](auto tag) {
     using T = decltype(tag);
     const T edge = T(1) - T(1e-6);
     for (int64_t t = 0; t < H; ++t) {
       const auto v = block<T>(actions, t * m * K, m, K).array().max(-edge).min(edge);
-      const auto mu = block<T>(mean_, t * m * K, m, K).array(),
-                 ls = block<T>(log_std_, t * m * K, m, K).array();
+      const auto mu = block<T>(mean, t * m * K, m, K).array(),
+                 ls = block<T>(log_std, t * m * K, m, K).array();
       // atanh(v) = log((1 + v) / (1 - v)) / 2
       const auto u = T(0.5) * ((T(1) + v) / (T(1) - v)).log();
       const auto gauss = T(-0.5) * ((u - mu) * (-ls).exp()).square() - ls - T(kHalfLog2Pi);

@@ -74,7 +74,8 @@ at::Tensor StochasticHybrid::compute_action(const at::Tensor& state) {
     models_.step(*s, sample_rows_[t], *s_next, &reward_rows_[t]);
     std::swap(s, s_next);
   }
-  log_density_ = sampler_->log_density(samples_);
+  // The samples' log-density is only computed where the weights use it.
+  if (options_.density_in_weights) log_density_ = sampler_->log_density(samples_);
 
   bool finite = true;
   dispatch_floating(plan_, [&](auto tag) {

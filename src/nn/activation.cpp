@@ -20,4 +20,22 @@ at::Tensor activate(const at::Tensor& x, Activation a) {
   return a == Activation::kSin ? at::sin(x) : at::relu(x);
 }
 
+void activate_out(at::Tensor& out, const at::Tensor& x, Activation a) {
+  if (a == Activation::kSin)
+    at::sin_out(out, x);
+  else
+    at::clamp_min_out(out, x, 0);  // relu
+}
+
+void activation_backward_(at::Tensor& grad, const at::Tensor& x, const at::Tensor& y, Activation a,
+                          at::Tensor& scratch) {
+  if (a == Activation::kSin) {
+    at::cos_out(scratch, x);
+    grad.mul_(scratch);
+  } else {
+    // ReLU's derivative is 1 where its output is positive (autograd's threshold_backward).
+    at::threshold_backward_out(grad, grad, y, 0.0);
+  }
+}
+
 }  // namespace hlt

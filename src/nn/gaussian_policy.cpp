@@ -35,8 +35,6 @@ torch::Tensor run_mlp(torch::nn::ModuleList layers, torch::Tensor x, Activation 
   return x;
 }
 
-constexpr double kTanhEps = 1e-6;
-
 }  // namespace
 
 GaussianPolicyImpl::GaussianPolicyImpl(const GaussianPolicyOptions& o) : options_(o) {
@@ -64,7 +62,7 @@ torch::Tensor GaussianPolicyImpl::squashed_log_prob(const torch::Tensor& u, cons
                                                     const torch::Tensor& mean, const torch::Tensor& log_std) {
   const torch::Tensor z = (u - mean) * torch::exp(-log_std);
   const torch::Tensor gaussian = -0.5 * z.square() - log_std - 0.5 * std::log(2.0 * M_PI);
-  const torch::Tensor correction = torch::log(1.0 - action.square() + kTanhEps);
+  const torch::Tensor correction = torch::log(1.0 - action.square() + kTanhEpsilon);
   return (gaussian - correction).sum(-1, /*keepdim=*/true);
 }
 
@@ -82,7 +80,7 @@ PolicySample GaussianPolicyImpl::sample(const torch::Tensor& state) {
 
 torch::Tensor GaussianPolicyImpl::log_prob(const torch::Tensor& state, const torch::Tensor& action) {
   auto [mean, log_std] = forward(state);
-  const torch::Tensor a = action.clamp(-1.0 + kTanhEps, 1.0 - kTanhEps);
+  const torch::Tensor a = action.clamp(-1.0 + kTanhEpsilon, 1.0 - kTanhEpsilon);
   return squashed_log_prob(torch::atanh(a), a, mean, log_std);
 }
 

@@ -2,6 +2,7 @@
 
 #include <torch/torch.h>
 
+#include "hlt/nn/dense_layers.h"
 #include "hlt/util/error.h"
 
 namespace hlt {
@@ -40,6 +41,51 @@ torch::Tensor TwinQNetworkImpl::forward(const torch::Tensor& state, const torch:
 torch::Tensor TwinQNetworkImpl::min_q(const torch::Tensor& state, const torch::Tensor& action) {
   const torch::Tensor q = forward(state, action);
   return torch::min(q[0], q[1]);
+}
+
+const torch::Tensor& TwinQNetworkImpl::forward_keep(const torch::Tensor& state, const torch::Tensor& action) {
+  torch::NoGradGuard no_grad;
+  at::cat_out(input_, {state, action}, 1);
+  const size_t layers = weights.size();
+  while (outputs_.size() < layers) {
+    outputs_.push_back(empty_buffer());
+    grads_.push_back(empty_buffer());
+  }
+  torch::Tensor x = input_.unsqueeze(0).expand({2, input_.size(0), input_.size(1)});
+  for (size_t l = 0; l < layers; ++l) {
+    at::baddbmm_out(outputs_[l], biases[l], l == 0 ? x : outputs_[l - 1], weights[l]);
+    if (l + 1 < layers) outputs_[l].clamp_min_(0);
+  }
+  return outputs_.back();
+}
+
+void TwinQNetworkImpl::backward_parameters(const torch::Tensor& grad_q) {
+  torch::NoGradGuard no_grad;
+  const torch::Tensor x = input_.unsqueeze(0).expand({2, input_.size(0), input_.size(1)});
+  torch::Tensor g = grad_q;
+  for (size_t l = weights.size(); l-- > 0;) {
+    const torch::Tensor& in = l == 0 ? x : outputs_[l - 1];
+    at::bmm_out(gradient_of(weights[l]), in.transpose(1, 2), g);
+    at::sum_out(gradient_of(biases[l]), g, {1}, /*keepdim=*/true);
+    if (l == 0) break;
+    at::bmm_out(grads_[l - 1], g, weights[l].transpose(1, 2));
+    at::threshold_backward_out(grads_[l - 1], grads_[l - 1], outputs_[l - 1], 0.0);
+    g = grads_[l - 1];
+  }
+}
+
+torch::Tensor TwinQNetworkImpl::backward_action(const torch::Tensor& grad_q) {
+  torch::NoGradGuard no_grad;
+  torch::Tensor g = grad_q;
+  for (size_t l = weights.size(); l-- > 1;) {
+    at::bmm_out(grads_[l - 1], g, weights[l].transpose(1, 2));
+    at::threshold_backward_out(grads_[l - 1], grads_[l - 1], outputs_[l - 1], 0.0);
+    g = grads_[l - 1];
+  }
+  // Only the action's columns of the first layer's input gradient are needed.
+  const int64_t n = options_.state_dim;
+  const torch::Tensor w_action = weights[0].narrow(1, n, options_.action_dim);  // [2, m, h]
+  return at::bmm(g, w_action.transpose(1, 2)).sum(0);
 }
 
 }  // namespace hlt

@@ -217,5 +217,64 @@ TEST(Gradients, EveryModelMatchesFiniteDifferences) {
   });
 }
 
+// The hand-written backward passes the model learner uses against autograd on the same loss: every
+// parameter's gradient, in float64 so that only the formulas can differ.
+std::vector<torch::Tensor> autograd_gradients(torch::nn::Module& m, const torch::Tensor& loss) {
+  return torch::autograd::grad({loss}, m.parameters());
+}
+
+void expect_written_gradients(torch::nn::Module& m, const std::vector<torch::Tensor>& expected) {
+  const auto params = m.parameters();
+  ASSERT_EQ(params.size(), expected.size());
+  for (size_t i = 0; i < params.size(); ++i) {
+    ASSERT_TRUE(params[i].grad().defined()) << m.named_parameters().keys()[i];
+    EXPECT_LT(testing::relative_error(params[i].grad(), expected[i]), 1e-12)
+        << m.named_parameters().keys()[i];
+  }
+}
+
+TEST(HandWrittenGradients, DynamicsLossMatchesAutograd) {
+  for (Activation act : {Activation::kSin, Activation::kRelu}) {
+    torch::manual_seed(5);
+    const int n = 3, m = 2, B = 7;
+    DynamicsModel dyn(DynamicsModelOptions{n, m, 12, act, -1.0, 0.5});
+    dyn->to(torch::kFloat64);
+    {
+      // One log-std entry beyond each clamp bound: their gradients must be zero.
+      torch::NoGradGuard ng;
+      dyn->log_std_param.copy_(torch::tensor({{-1.5, 0.2, 0.9}}, torch::kFloat64));
+    }
+    auto s = torch::randn({B, n}, torch::kFloat64), a = torch::randn({B, m}, torch::kFloat64);
+    auto s2 = s + 0.3 * torch::randn({B, n}, torch::kFloat64);
+    const torch::Tensor loss = dyn->loss(s, a, s2);
+    auto expected = autograd_gradients(*dyn, 0.25 * loss);
+    EXPECT_NEAR(dyn->loss_with_gradient(s, a, s2, 0.25), loss.item<double>(), 1e-12);
+    expect_written_gradients(*dyn, expected);
+    EXPECT_EQ(dyn->log_std_param.grad()[0][0].item<double>(), 0.0);
+    EXPECT_EQ(dyn->log_std_param.grad()[0][2].item<double>(), 0.0);
+    EXPECT_NE(dyn->log_std_param.grad()[0][1].item<double>(), 0.0);
+    // A second call overwrites the gradients rather than adding to them.
+    dyn->loss_with_gradient(s, a, s2, 0.25);
+    expect_written_gradients(*dyn, expected);
+  }
+}
+
+TEST(HandWrittenGradients, RewardTdLossMatchesAutograd) {
+  for (double gamma : {0.0, 0.95}) {
+    torch::manual_seed(6);
+    const int n = 3, m = 2, B = 9;
+    RewardModel rew(RewardModelOptions{n, m, 10});
+    rew->to(torch::kFloat64);
+    auto s = torch::randn({B, n}, torch::kFloat64), a = torch::randn({B, m}, torch::kFloat64);
+    auto s2 = torch::randn({B, n}, torch::kFloat64), a2 = torch::randn({B, m}, torch::kFloat64);
+    auto r = torch::randn({B, 1}, torch::kFloat64);
+    auto done = (torch::rand({B, 1}, torch::kFloat64) < 0.3).to(torch::kFloat64);
+    const torch::Tensor loss = rew->td_loss(s, a, r, s2, a2, done, gamma);
+    auto expected = autograd_gradients(*rew, 0.5 * loss);
+    EXPECT_NEAR(rew->td_loss_with_gradient(s, a, r, s2, a2, done, gamma, 0.5), loss.item<double>(), 1e-12);
+    expect_written_gradients(*rew, expected);
+  }
+}
+
 }  // namespace
 }  // namespace hlt

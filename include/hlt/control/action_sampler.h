@@ -70,7 +70,8 @@ class FilteredNoiseSampler : public ActionSampler {
 // to the policy: a plan sample far from a confident policy needs a much higher predicted return to win,
 // while under a broad (or poor, uncertain) policy the models decide. With the policy first this lets the
 // models keep and improve a plan of their own (the policy sampler alone ignores the warm start:
-// a + sum w (v - a) = sum w v).
+// a + sum w (v - a) = sum w v). The prior is evaluated only when log_density() is asked for, on every
+// step's rollout states at once.
 class MixtureSampler : public ActionSampler {
  public:
   MixtureSampler(std::shared_ptr<ActionSampler> first, std::shared_ptr<ActionSampler> second,
@@ -81,11 +82,11 @@ class MixtureSampler : public ActionSampler {
 
  private:
   std::shared_ptr<ActionSampler> first_, second_;
-  int64_t second_samples_, first_samples_ = 0;
+  int64_t second_samples_, first_samples_ = 0, horizon_ = 0;
   PolicyForward prior_;
   bool tanh_correction_;
   at::Tensor actions_first_, actions_second_;  // [m, K1], [m, K2]
-  at::Tensor mean_, log_std_;                  // [H, m, K]: the prior at every rollout state
+  at::Tensor states_;                          // [n, H K]: every step's rollout states
 };
 
 }  // namespace hlt

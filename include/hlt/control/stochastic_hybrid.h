@@ -37,7 +37,8 @@ class StochasticHybrid : public Controller {
   void reset() override;
   // The current plan [H, m] (after the last call's update).
   const at::Tensor& plan() const { return plan_; }
-  // The last call's weights [H, K], sampled actions [H, K, m] and their log-densities [H, K].
+  // The last call's weights [H, K], sampled actions [H, K, m] and their log-densities [H, K] (computed
+  // only with density_in_weights; undefined otherwise).
   const at::Tensor& weights() const { return weights_; }
   at::Tensor samples() const { return samples_.permute({0, 2, 1}); }
   const at::Tensor& log_density() const { return log_density_; }

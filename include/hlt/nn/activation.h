@@ -14,5 +14,11 @@ enum class Activation { kSin, kRelu };
 Activation parse_activation(const std::string& name);
 std::string activation_name(Activation a);
 at::Tensor activate(const at::Tensor& x, Activation a);
+// out = activate(x), into a caller-owned buffer.
+void activate_out(at::Tensor& out, const at::Tensor& x, Activation a);
+// grad *= d activate(x) / dx in place, given the forward's input x and output y; `scratch` is a buffer
+// for sin's cos(x).
+void activation_backward_(at::Tensor& grad, const at::Tensor& x, const at::Tensor& y, Activation a,
+                          at::Tensor& scratch);
 
 }  // namespace hlt

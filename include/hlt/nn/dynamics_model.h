@@ -5,7 +5,9 @@
 #include <cstdint>
 
 #include <torch/nn/module.h>
+
 #include <torch/nn/modules/linear.h>
+#include "hlt/nn/dense_layers.h"
 
 #include "hlt/nn/activation.h"
 
@@ -31,6 +33,10 @@ class DynamicsModelImpl : public torch::nn::Module {
   // -mean over batch and state dimensions of log N(next_state; forward(state, action), exp(log_std)^2).
   torch::Tensor loss(const torch::Tensor& state, const torch::Tensor& action,
                      const torch::Tensor& next_state);
+  // The same loss's value, with `scale` times its gradient written (not accumulated) into the parameters'
+  // .grad() tensors by a hand-written backward pass (tested against autograd) instead of a graph.
+  double loss_with_gradient(const torch::Tensor& state, const torch::Tensor& action,
+                            const torch::Tensor& next_state, double scale = 1.0);
 
   const DynamicsModelOptions& options() const { return options_; }
   torch::nn::Linear fc1{nullptr}, fc2{nullptr};
@@ -38,6 +44,9 @@ class DynamicsModelImpl : public torch::nn::Module {
 
  private:
   DynamicsModelOptions options_;
+  // loss_with_gradient's buffers, kept between calls.
+  torch::Tensor x_ = empty_buffer(), h_ = empty_buffer(), act_ = empty_buffer(), mean_ = empty_buffer(),
+                z_ = empty_buffer(), g_mean_ = empty_buffer(), g_act_ = empty_buffer(), cos_ = empty_buffer();
 };
 TORCH_MODULE(DynamicsModel);
 

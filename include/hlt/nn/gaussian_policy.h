@@ -15,6 +15,9 @@
 
 namespace hlt {
 
+// The constant in the tanh correction log(1 - a^2 + kTanhEpsilon), which keeps it finite at |a| = 1.
+inline constexpr double kTanhEpsilon = 1e-6;
+
 struct GaussianPolicyOptions {
   int64_t state_dim = 0;
   int64_t action_dim = 0;

@@ -6,7 +6,9 @@
 #include <cstdint>
 
 #include <torch/nn/module.h>
+
 #include <torch/nn/modules/linear.h>
+#include "hlt/nn/dense_layers.h"
 
 namespace hlt {
 
@@ -26,12 +28,23 @@ class RewardModelImpl : public torch::nn::Module {
   torch::Tensor td_loss(const torch::Tensor& state, const torch::Tensor& action, const torch::Tensor& reward,
                         const torch::Tensor& next_state, const torch::Tensor& next_action,
                         const torch::Tensor& done, double gamma);
+  // The same loss's value, with `scale` times its gradient written (not accumulated) into the parameters'
+  // .grad() tensors by a hand-written backward pass (tested against autograd) instead of a graph.
+  double td_loss_with_gradient(const torch::Tensor& state, const torch::Tensor& action,
+                               const torch::Tensor& reward, const torch::Tensor& next_state,
+                               const torch::Tensor& next_action, const torch::Tensor& done, double gamma,
+                               double scale = 1.0);
 
   const RewardModelOptions& options() const { return options_; }
   torch::nn::Linear fc1{nullptr}, fc2{nullptr}, fc3{nullptr};
 
  private:
   RewardModelOptions options_;
+  // td_loss_with_gradient's buffers, kept between calls.
+  torch::Tensor x_ = empty_buffer(), h1_ = empty_buffer(), h2_ = empty_buffer(), r_ = empty_buffer(),
+                next_x_ = empty_buffer(), next_h1_ = empty_buffer(), next_h2_ = empty_buffer(),
+                next_r_ = empty_buffer(), target_ = empty_buffer(), g_r_ = empty_buffer(),
+                g_h2_ = empty_buffer(), g_h1_ = empty_buffer();
 };
 TORCH_MODULE(RewardModel);
 

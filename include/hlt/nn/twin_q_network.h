@@ -7,7 +7,9 @@
 #include <vector>
 
 #include <torch/nn/module.h>
+
 #include <torch/nn/pimpl.h>
+#include "hlt/nn/dense_layers.h"
 
 namespace hlt {
 
@@ -25,6 +27,16 @@ class TwinQNetworkImpl : public torch::nn::Module {
   torch::Tensor forward(const torch::Tensor& state, const torch::Tensor& action);
   // min_i Q_i(s, a), [B, 1]: the clipped double-Q estimate.
   torch::Tensor min_q(const torch::Tensor& state, const torch::Tensor& action);
+
+  // The hand-written passes SAC's update uses instead of autograd. forward_keep is forward with every
+  // layer's activations kept (valid until the next forward_keep); the two backward passes start from
+  // d loss / d Q [2, B, 1] of that forward.
+  const torch::Tensor& forward_keep(const torch::Tensor& state, const torch::Tensor& action);
+  // Writes (not accumulates) every weight's and bias's gradient.
+  void backward_parameters(const torch::Tensor& grad_q);
+  // d loss / d action [B, m], summed over both critics; the parameters' gradients are left alone.
+  torch::Tensor backward_action(const torch::Tensor& grad_q);
+
   const TwinQNetworkOptions& options() const { return options_; }
 
   std::vector<torch::Tensor> weights;  // layer l: [2, in_l, out_l]
@@ -32,6 +44,9 @@ class TwinQNetworkImpl : public torch::nn::Module {
 
  private:
   TwinQNetworkOptions options_;
+  // forward_keep's activations: the input [B, n + m] and each layer's output (after its ReLU).
+  torch::Tensor input_ = empty_buffer();
+  std::vector<torch::Tensor> outputs_, grads_;
 };
 TORCH_MODULE(TwinQNetwork);
 
