@@ -26,6 +26,11 @@ void match_buffers(std::initializer_list<at::Tensor*> buffers, const at::Tensor&
     if (b->scalar_type() != like.scalar_type()) *b = at::empty({0}, like.options());
 }
 
+at::Tensor& sized(at::Tensor& buffer, at::IntArrayRef sizes) {
+  if (buffer.sizes() != sizes) buffer.resize_(sizes);
+  return buffer;
+}
+
 at::Tensor& gradient_of(at::Tensor& parameter) {
   if (!parameter.grad().defined()) parameter.mutable_grad() = at::zeros_like(parameter);
   return parameter.mutable_grad();

@@ -4,6 +4,7 @@
 
 #include <torch/torch.h>
 
+#include "hlt/nn/batched_forward.h"
 #include "hlt/nn/dense_layers.h"
 #include "hlt/util/error.h"
 
@@ -38,34 +39,63 @@ torch::Tensor DynamicsModelImpl::loss(const torch::Tensor& state, const torch::T
 
 double DynamicsModelImpl::loss_with_gradient(const torch::Tensor& state, const torch::Tensor& action,
                                              const torch::Tensor& next_state, double scale) {
+  // The products go through BLAS (ATen's out= kernels); everything elementwise but sin and cos runs as
+  // Eigen expressions over the same buffers, without dispatched ops.
   torch::NoGradGuard no_grad;
-  const int64_t batch = state.size(0), n = options_.state_dim;
+  const int64_t batch = state.size(0), n = options_.state_dim, m = options_.action_dim;
+  check(state.is_contiguous() && action.is_contiguous() && next_state.is_contiguous() &&
+            state.scalar_type() == fc1->weight.scalar_type(),
+        "DynamicsModel::loss_with_gradient needs contiguous inputs of the model's dtype");
   match_buffers({&x_, &h_, &act_, &mean_, &z_, &g_mean_, &g_act_, &cos_}, fc1->weight);
-  at::cat_out(x_, {state, action}, 1);
+  sized(x_, {batch, n + m});
+  sized(g_mean_, {batch, n});
+  const double count = static_cast<double>(batch * n);
+  double loss = 0;
+  dispatch_floating(x_, [&](auto tag) {
+    using T = decltype(tag);
+    auto x = row_map<T>(x_);
+    x.leftCols(n) = row_map<T>(state);
+    x.rightCols(m) = row_map<T>(action);
+  });
   dense_forward(h_, x_, fc1->weight, fc1->bias);
   activate_out(act_, h_, options_.activation);
-  dense_forward(mean_, act_, fc2->weight, fc2->bias);
-  mean_.add_(state);
-  const torch::Tensor ls = log_std();
-  const torch::Tensor inv_std = torch::exp(-ls);
-  at::sub_out(z_, next_state, mean_);
-  z_.mul_(inv_std);
-  // loss = mean(z^2) / 2 + mean(log_std) + log(2 pi) / 2 over the B x n entries.
-  const torch::Tensor z_sq_col = z_.square().sum(0, /*keepdim=*/true);  // [1, n]
-  const double count = static_cast<double>(batch * n);
-  const double loss = (0.5 * z_sq_col.sum() / count + ls.mean()).item<double>() + 0.5 * std::log(2.0 * M_PI);
-
-  // d loss / d mean = -z / (sigma B n); d loss / d log_std_j = 1 / n - sum_b z_bj^2 / (B n), zero where
-  // the clamp is active (as autograd's clamp backward).
-  at::mul_out(g_mean_, z_, inv_std);
-  g_mean_.mul_(-scale / count);
-  dense_backward(g_mean_, act_, fc2->weight, gradient_of(fc2->weight), gradient_of(fc2->bias), &g_act_);
-  activation_backward_(g_act_, h_, act_, options_.activation, cos_);
-  dense_backward(g_act_, x_, fc1->weight, gradient_of(fc1->weight), gradient_of(fc1->bias), nullptr);
-  const torch::Tensor inside =
-      (log_std_param >= options_.log_std_min).logical_and(log_std_param <= options_.log_std_max);
-  gradient_of(log_std_param)
-      .copy_(((1.0 / n - z_sq_col / count) * scale).masked_fill_(inside.logical_not(), 0.0));
+  at::mm_out(mean_, act_, fc2->weight.t());
+  dispatch_floating(x_, [&](auto tag) {
+    using T = decltype(tag);
+    using Row = Eigen::Array<T, 1, Eigen::Dynamic>;
+    const Eigen::Map<const Row> b2(fc2->bias.data_ptr<T>(), n), raw_ls(log_std_param.data_ptr<T>(), n);
+    const Row ls = raw_ls.max(T(options_.log_std_min)).min(T(options_.log_std_max));
+    const Row inv_std = (-ls).exp();
+    // z = (s' - (s + W2 h + b2)) / sigma; loss = mean(z^2) / 2 + mean(log sigma) + log(2 pi) / 2.
+    const RowMatrix<T> z =
+        ((row_map<T>(next_state) - row_map<T>(state) - row_map<T>(mean_)).array().rowwise() - b2).rowwise() *
+        inv_std;
+    const Row z_sq = z.array().square().colwise().sum();
+    loss = 0.5 * static_cast<double>(z_sq.sum()) / count + static_cast<double>(ls.mean()) +
+           0.5 * std::log(2.0 * M_PI);
+    // d loss / d mean = -z / (sigma B n); d loss / d log_std_j = 1 / n - sum_b z_bj^2 / (B n), zero where
+    // the clamp is active (as autograd's clamp backward).
+    auto g = row_map<T>(g_mean_);
+    g = (z.array().rowwise() * inv_std * T(-scale / count)).matrix();
+    Eigen::Map<Row>(gradient_of(fc2->bias).template data_ptr<T>(), n) = g.colwise().sum().array();
+    const Row g_ls = T(scale) * (T(1.0 / n) - z_sq / T(count));
+    const auto inside = (raw_ls >= T(options_.log_std_min)) && (raw_ls <= T(options_.log_std_max));
+    Eigen::Map<Row>(gradient_of(log_std_param).template data_ptr<T>(), n) = inside.select(g_ls, T(0));
+  });
+  at::mm_out(gradient_of(fc2->weight), g_mean_.t(), act_);
+  at::mm_out(g_act_, g_mean_, fc2->weight);
+  if (options_.activation == Activation::kSin) at::cos_out(cos_, h_);
+  dispatch_floating(x_, [&](auto tag) {
+    using T = decltype(tag);
+    auto g = row_map<T>(g_act_);
+    if (options_.activation == Activation::kSin)
+      g.array() *= row_map<T>(cos_).array();
+    else
+      g = (row_map<T>(act_).array() > T(0)).select(g, T(0));
+    sum_rows_into(g, Eigen::Map<Eigen::Matrix<T, 1, Eigen::Dynamic>>(
+                         gradient_of(fc1->bias).template data_ptr<T>(), options_.hidden));
+  });
+  at::mm_out(gradient_of(fc1->weight), g_act_.t(), x_);
   return loss;
 }
 

@@ -2,6 +2,7 @@
 
 #include <torch/torch.h>
 
+#include "hlt/nn/batched_forward.h"
 #include "hlt/nn/dense_layers.h"
 #include "hlt/util/error.h"
 
@@ -39,34 +40,63 @@ double RewardModelImpl::td_loss_with_gradient(const torch::Tensor& state, const 
                                               const torch::Tensor& reward, const torch::Tensor& next_state,
                                               const torch::Tensor& next_action, const torch::Tensor& done,
                                               double gamma, double scale) {
+  // The hidden layers' products go through BLAS (ATen's out= kernels); the one-output last layer, the
+  // ReLUs, the target and the bias gradients run as Eigen expressions over the same buffers.
   torch::NoGradGuard no_grad;
+  const int64_t batch = state.size(0), n = options_.state_dim, m = options_.action_dim, h = options_.hidden;
+  for (const torch::Tensor* t : {&state, &action, &reward, &next_state, &next_action, &done})
+    check(t->is_contiguous() && t->scalar_type() == fc1->weight.scalar_type(),
+          "RewardModel::td_loss_with_gradient needs contiguous inputs of the model's dtype");
   match_buffers({&x_, &h1_, &h2_, &r_, &next_x_, &next_h1_, &next_h2_, &next_r_, &g_r_, &g_h2_, &g_h1_},
                 fc1->weight);
-  const auto pass = [this](const torch::Tensor& s, const torch::Tensor& a, torch::Tensor& x,
-                           torch::Tensor& h1, torch::Tensor& h2, torch::Tensor& out) {
-    at::cat_out(x, {s, a}, 1);
-    dense_forward(h1, x, fc1->weight, fc1->bias);
-    h1.clamp_min_(0);
-    dense_forward(h2, h1, fc2->weight, fc2->bias);
-    h2.clamp_min_(0);
-    dense_forward(out, h2, fc3->weight, fc3->bias);
-  };
-  if (gamma == 0.0) {
-    target_ = reward;
-  } else {
-    pass(next_state, next_action, next_x_, next_h1_, next_h2_, next_r_);
-    target_ = reward + gamma * (1.0 - done) * next_r_;
-  }
-  pass(state, action, x_, h1_, h2_, r_);
-  // d loss / d r = -2 (target - r) / B.
-  at::sub_out(g_r_, target_, r_);
-  const double loss = g_r_.square().mean().item<double>();
-  g_r_.mul_(-2.0 * scale / static_cast<double>(state.size(0)));
-  dense_backward(g_r_, h2_, fc3->weight, gradient_of(fc3->weight), gradient_of(fc3->bias), &g_h2_);
-  at::threshold_backward_out(g_h2_, g_h2_, h2_, 0.0);
-  dense_backward(g_h2_, h1_, fc2->weight, gradient_of(fc2->weight), gradient_of(fc2->bias), &g_h1_);
-  at::threshold_backward_out(g_h1_, g_h1_, h1_, 0.0);
-  dense_backward(g_h1_, x_, fc1->weight, gradient_of(fc1->weight), gradient_of(fc1->bias), nullptr);
+  double loss = 0;
+  dispatch_floating(x_, [&](auto tag) {
+    using T = decltype(tag);
+    using Vec = Eigen::Matrix<T, Eigen::Dynamic, 1>;
+    using Row = Eigen::Matrix<T, 1, Eigen::Dynamic>;
+    const Eigen::Map<const Row> w3(fc3->weight.data_ptr<T>(), h);
+    const T b3 = fc3->bias.data_ptr<T>()[0];
+    // r(s, a) for a batch, keeping the activations.
+    const auto pass = [&](const torch::Tensor& s, const torch::Tensor& a, torch::Tensor& x, torch::Tensor& h1,
+                          torch::Tensor& h2, torch::Tensor& out) {
+      auto xm = row_map<T>(sized(x, {batch, n + m}));
+      xm.leftCols(n) = row_map<T>(s);
+      xm.rightCols(m) = row_map<T>(a);
+      dense_forward(h1, x, fc1->weight, fc1->bias);
+      row_map<T>(h1) = row_map<T>(h1).cwiseMax(T(0));
+      dense_forward(h2, h1, fc2->weight, fc2->bias);
+      row_map<T>(h2) = row_map<T>(h2).cwiseMax(T(0));
+      Eigen::Map<Vec>(sized(out, {batch}).template data_ptr<T>(), batch) =
+          (row_map<T>(h2) * w3.transpose()).array() + b3;
+    };
+    const Eigen::Map<const Vec> r(reward.data_ptr<T>(), batch), d(done.data_ptr<T>(), batch);
+    pass(state, action, x_, h1_, h2_, r_);
+    Vec diff = -Eigen::Map<const Vec>(r_.data_ptr<T>(), batch);
+    diff += r;
+    if (gamma != 0.0) {
+      pass(next_state, next_action, next_x_, next_h1_, next_h2_, next_r_);
+      diff.array() +=
+          T(gamma) * (T(1) - d.array()) * Eigen::Map<const Vec>(next_r_.data_ptr<T>(), batch).array();
+    }
+    // loss = mean(diff^2) with diff = target - r(s, a); d loss / d r = -2 diff / B.
+    loss = static_cast<double>(diff.squaredNorm()) / static_cast<double>(batch);
+    const Vec g_r = diff * T(-2.0 * scale / static_cast<double>(batch));
+    Eigen::Map<Row>(gradient_of(fc3->weight).template data_ptr<T>(), h) = g_r.transpose() * row_map<T>(h2_);
+    gradient_of(fc3->bias).template data_ptr<T>()[0] = g_r.sum();
+    auto g2 = row_map<T>(sized(g_h2_, {batch, h}));
+    g2 = ((g_r * w3).array() * (row_map<T>(h2_).array() > T(0)).template cast<T>()).matrix();
+    sum_rows_into(g2, Eigen::Map<Row>(gradient_of(fc2->bias).template data_ptr<T>(), h));
+  });
+  at::mm_out(gradient_of(fc2->weight), g_h2_.t(), h1_);
+  at::mm_out(g_h1_, g_h2_, fc2->weight);
+  dispatch_floating(x_, [&](auto tag) {
+    using T = decltype(tag);
+    auto g1 = row_map<T>(g_h1_);
+    g1 = (row_map<T>(h1_).array() > T(0)).select(g1, T(0));
+    sum_rows_into(g1, Eigen::Map<Eigen::Matrix<T, 1, Eigen::Dynamic>>(
+                          gradient_of(fc1->bias).template data_ptr<T>(), h));
+  });
+  at::mm_out(gradient_of(fc1->weight), g_h1_.t(), x_);
   return loss;
 }
 

@@ -35,6 +35,15 @@ RowMap<T> row_map(const at::Tensor& t) {
   return RowMap<T>(t.data_ptr<T>(), t.size(0), t.size(1), Eigen::OuterStride<>(t.stride(0)));
 }
 
+// out = the sum of m's rows, accumulated row by row: contiguous, vectorised adds for a row-major m (Eigen's
+// colwise().sum() walks each column with a stride there).
+template <typename Derived, typename Out>
+void sum_rows_into(const Eigen::MatrixBase<Derived>& m, Out&& out) {
+  out = m.row(0);
+  for (Eigen::Index i = 1; i < m.rows(); ++i)
+    out += m.row(i);
+}
+
 [[noreturn]] void dispatch_floating_error(const at::Tensor& t);
 
 // Calls f(T{}) with T = float or double after the tensor's dtype; throws for any other dtype.

@@ -33,6 +33,9 @@ at::Tensor empty_buffer();
 // float64 for a test needs float64 buffers).
 void match_buffers(std::initializer_list<at::Tensor*> buffers, const at::Tensor& like);
 
+// `buffer` with the given sizes (resized in place if it has others).
+at::Tensor& sized(at::Tensor& buffer, at::IntArrayRef sizes);
+
 // A parameter's .grad(), created as zeros if it has none yet (FlatAdam binds every parameter's gradient to
 // its flat buffer; a network used without an optimizer, as in tests, gets its own).
 at::Tensor& gradient_of(at::Tensor& parameter);
