@@ -243,14 +243,45 @@ TEST(Tabletop, WristForceMeasuresTheWeightOfAHeldBlock) {
   const double lifted = scene.block_pose(0).translation().z();
   const double hand_weight = (0.73 + 2 * 0.015) * kG;
   std::printf(
-      "[panda] wrist force at rest open %.3f N (hand and fingers weigh %.3f N); holding the %.2f kg "
-      "block lifted to z %.3f m: %.3f N, change %.3f N against its weight %.3f N\n",
+      "[panda] wrist force at rest open %.4f N (hand and fingers weigh %.4f N); holding the %.2f kg "
+      "block lifted to z %.3f m: %.4f N, change %.4f N against its weight %.4f N\n",
       empty[2], -hand_weight, block.mass, lifted, held[2], held[2] - empty[2], -block.mass * kG);
   EXPECT_GT(lifted, 0.1);
   EXPECT_NEAR(empty[2], -hand_weight, 0.02 * hand_weight);
   EXPECT_NEAR(held[2] - empty[2], -block.mass * kG, 0.02 * block.mass * kG);
   // Held still, the force is vertical.
   EXPECT_LT(held.head<2>().norm(), 0.05 * block.mass * kG);
+}
+
+TEST(Tabletop, ASlidingBlockStopsWhereCoulombFrictionSays) {
+  BlockSpec block;
+  block.friction = 0.5;
+  TabletopSettings s = settings_for(ArmKind::kSawyer, {block});
+  s.table_friction = 0.6;
+  Tabletop scene(s);
+  place_tool(scene, {0.5, -0.3, 0.3});
+  scene.set_block(0, {0.5, 0.3, 0.025}, 0.0);
+  // Bullet combines the two frictions as their product; sliding decelerates at mu g.
+  const double mu = 0.5 * 0.6, v0 = 0.5;
+  bullet::Robot& b = *scene.world().robots().back();
+  b.set_base_state(b.base_position(), b.base_orientation(), Eigen::Vector3d(v0, 0, 0),
+                   Eigen::Vector3d::Zero());
+  for (int i = 0; i < 5; ++i)
+    scene.step(Vector6d::Zero());
+  const Eigen::Vector3d p = scene.block_pose(0).translation();
+  // v^2 / (2 mu g), less the v0 h / 2 that semi-implicit Euler's velocity-first update takes off (h = 1/240
+  // s).
+  const double h = s.control_dt / s.substeps;
+  const double expected = v0 * v0 / (2 * mu * kG) - 0.5 * v0 * h;
+  std::printf(
+      "[tabletop] block sliding from %.2f m/s on friction %.2f: stopped after %.5f m (Coulomb, time-stepped: "
+      "%.5f m), "
+      "speed %.1e m/s, height %.5f m\n",
+      v0, mu, p.x() - 0.5, expected, scene.block_velocity(0).norm(), p.z());
+  EXPECT_NEAR(p.x() - 0.5, expected, 0.02 * expected);
+  EXPECT_NEAR(p.y(), 0.3, 1e-3);
+  EXPECT_NEAR(p.z(), 0.025, 1e-3);
+  EXPECT_LT(scene.block_velocity(0).norm(), 1e-3);
 }
 
 // Pushes the block with the tool (the Sawyer) or grasps it (the Panda): contacts throughout.
