@@ -13,6 +13,7 @@ namespace hlt::robot {
 
 namespace {
 
+constexpr double kPi = 3.14159265358979323846;
 constexpr double kTableThickness = 0.05;
 // Snapshot layout after the world's values: the filter, the mean wrench, the finger speed.
 constexpr size_t kExtra = 6 + 6 + 1;
@@ -185,8 +186,8 @@ cv::Mat Tabletop::render(int width, int height, const std::vector<Eigen::Vector3
   side.caption(fmt::format("{}  wrist F ({:.1f}, {:.1f}, {:.1f}) N", arm_->model().name, mean_wrench_[0],
                            mean_wrench_[1], mean_wrench_[2]));
 
-  // Top view: the workspace in front of the arm, 1.0 m across.
-  SideView top(width - left_w, height, 0.55, 0.0, 1.0);
+  // Top view: the workspace in front of the arm, 0.8 m across.
+  SideView top(width - left_w, height, 0.55, 0.0, 0.8);
   top.rectangle(lo.x(), lo.y(), hi.x(), hi.y(), table_colour);
   const Eigen::AlignedBox3d& ws = s.control.workspace;
   if (ws.max().x() - ws.min().x() < 5) {
@@ -196,14 +197,19 @@ cv::Mat Tabletop::render(int width, int height, const std::vector<Eigen::Vector3
     top.line(ws.max().x(), ws.max().y(), ws.min().x(), ws.max().y(), edge);
     top.line(ws.min().x(), ws.max().y(), ws.min().x(), ws.min().y(), edge);
   }
-  for (const Eigen::Vector3d& m : marks) {
-    top.disc(m.x(), m.y(), 0.03, cv::Scalar(60, 180, 60));
-    top.disc(m.x(), m.y(), 0.022, table_colour);
-  }
-  for (int i = 0; i < num_blocks(); ++i)
-    top.polygon(block_corners(i, 0, 1), s.blocks[i].colour);
+  // The arm first: seen from above it would hide the block it pushes, so blocks and marks go over it.
   bullet::draw_top(top, arm_->robot());
   arm_boxes(top, 0, 1);
+  for (int i = 0; i < num_blocks(); ++i)
+    top.polygon(block_corners(i, 0, 1), s.blocks[i].colour);
+  for (const Eigen::Vector3d& m : marks) {
+    const int n = 32;
+    for (int k = 0; k < n; ++k) {
+      const double a0 = 2 * kPi * k / n, a1 = 2 * kPi * (k + 1) / n, r = 0.026;
+      top.line(m.x() + r * std::cos(a0), m.y() + r * std::sin(a0), m.x() + r * std::cos(a1),
+               m.y() + r * std::sin(a1), cv::Scalar(60, 180, 60), 2);
+    }
+  }
   tool_marker(top, 0, 1);
 
   cv::Mat out(height, width, CV_8UC3);
