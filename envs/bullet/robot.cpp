@@ -4,7 +4,12 @@
 #include <cmath>
 #include <limits>
 
+// Bullet's inline btBoxShape::getPlane leaves part of a vector unset, which GCC reports wherever the box's
+// virtual functions are emitted, as they are here.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #include <btBulletDynamicsCommon.h>
+#pragma GCC diagnostic pop
 
 #include <BulletCollision/CollisionShapes/btMultiSphereShape.h>
 #include <BulletDynamics/Featherstone/btMultiBody.h>

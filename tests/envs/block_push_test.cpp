@@ -63,7 +63,7 @@ TEST(BlockPush, ResetPlacesBlockAndTargetInTheWorkspace) {
     const Eigen::VectorXd o = env.reset(seed);
     const Eigen::Vector3d b = env.scene().block_pose(0).translation();
     const Eigen::Vector3d t = env.target();
-    for (const Eigen::Vector2d p : {Eigen::Vector2d(b.head<2>()), Eigen::Vector2d(t.head<2>())}) {
+    for (const Eigen::Vector2d& p : {Eigen::Vector2d(b.head<2>()), Eigen::Vector2d(t.head<2>())}) {
       EXPECT_GE(p.x(), BlockPush::kXMin);
       EXPECT_LE(p.x(), BlockPush::kXMax);
       EXPECT_GE(p.y(), BlockPush::kYMin);

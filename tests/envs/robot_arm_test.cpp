@@ -184,7 +184,9 @@ TEST(EeControl, LowPassFilterAndHelpers) {
   EXPECT_DOUBLE_EQ(c.filtered()[0], 0.25);
   c.command(v);
   EXPECT_DOUBLE_EQ(c.filtered()[0], 0.25 * 0.75 + 0.25);
-  EXPECT_THROW(EeVelocityController(EeControlSettings{0.05, {}, 1.0, 0.01}), Error);
+  EeControlSettings unstable;
+  unstable.filter = 1.0;  // would never follow the command
+  EXPECT_THROW(EeVelocityController{unstable}, Error);
 
   Vector7d qd;
   qd << 1, -4, 0, 0, 0, 0, 2;
