@@ -7,6 +7,10 @@
 #include <cstdio>
 #include <random>
 
+#include <btBulletDynamicsCommon.h>
+
+#include <BulletDynamics/Featherstone/btMultiBodyDynamicsWorld.h>
+
 #include "envs/robot/arm.h"
 #include "envs/robot/ee_control.h"
 #include "envs/robot/tabletop.h"
@@ -284,6 +288,26 @@ TEST(Tabletop, ASlidingBlockStopsWhereCoulombFrictionSays) {
   EXPECT_NEAR(p.y(), 0.3, 1e-3);
   EXPECT_NEAR(p.z(), 0.025, 1e-3);
   EXPECT_LT(scene.block_velocity(0).norm(), 1e-3);
+}
+
+TEST(Tabletop, ContactPairsLastWithBoxSizedThresholds) {
+  Tabletop scene(settings_for(ArmKind::kPanda, {BlockSpec{}, BlockSpec{}}));
+  btDispatcher& d = *scene.world().bullet().getDispatcher();
+  const int n = d.getNumManifolds();
+  // Fingers and hand with each block and the table, the blocks with each other and the table.
+  EXPECT_EQ(n, 3 * 3 + 1 + 2);
+  double worst = 0;
+  for (int i = 0; i < n; ++i)
+    worst = std::max(worst, double(d.getManifoldByIndexInternal(i)->getContactBreakingThreshold()));
+  // Bullet's 0.02 x the smaller body's bounding-sphere radius (world-sized bounds gave 3.5 m).
+  EXPECT_LT(worst, 0.02);
+  place_tool(scene, {0.5, 0.0, 0.2});
+  scene.set_block(0, {1.0, 0.6, 0.025}, 0.0);
+  scene.set_block(1, {0.6, -0.5, 0.4}, 0.5);  // falls onto the table, far from everything else
+  for (int i = 0; i < 10; ++i)
+    scene.step(Vector6d::Zero());
+  EXPECT_NEAR(scene.block_pose(1).translation().z(), 0.025, 1e-3);
+  EXPECT_EQ(d.getNumManifolds(), n);
 }
 
 // Pushes the block with the tool (the Sawyer) or grasps it (the Panda): contacts throughout.
