@@ -61,6 +61,13 @@ void SideView::rectangle(double x0, double z0, double x1, double z1, const cv::S
                 cv::LINE_AA, kShift);
 }
 
+void SideView::polygon(const std::vector<cv::Point2d>& corners, const cv::Scalar& colour) {
+  std::vector<cv::Point> pts;
+  for (const cv::Point2d& c : corners)
+    pts.push_back(fixed_point(to_pixel(c.x, c.y)));
+  if (pts.size() >= 3) cv::fillConvexPoly(image_, pts, colour, cv::LINE_AA, kShift);
+}
+
 void SideView::caption(const std::string& text) {
   ++caption_lines_;
   // Readable from thumbnails (image strips) up to full-size frames.

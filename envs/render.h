@@ -3,6 +3,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -22,6 +23,8 @@ class SideView {
   void line(double x0, double z0, double x1, double z1, const cv::Scalar& colour, int thickness_px = 1);
   void disc(double x, double z, double radius, const cv::Scalar& colour);
   void rectangle(double x0, double z0, double x1, double z1, const cv::Scalar& colour);
+  // A filled convex polygon through the given (x, z) corners (a turned box seen from above).
+  void polygon(const std::vector<cv::Point2d>& corners, const cv::Scalar& colour);
   // Text in the top-left corner, one call per line.
   void caption(const std::string& text);
 

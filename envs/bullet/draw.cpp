@@ -23,8 +23,11 @@ void draw_projected(SideView& view, const Robot& robot, int u, int v, int depth_
     if (shapes.empty()) continue;
     const bool body = !body_found;
     body_found = true;
-    for (const Shape& s : shapes)
+    for (const Shape& s : shapes) {
+      // Boxes are the scenes' to draw (their orientation is not in a Shape); robots here are capsules.
+      if (s.is_box()) continue;
       pieces.push_back({s, looking * 0.5 * (s.from[depth_axis] + s.to[depth_axis]) - s.radius, body});
+    }
   }
   std::stable_sort(pieces.begin(), pieces.end(),
                    [](const Piece& a, const Piece& b) { return a.depth > b.depth; });

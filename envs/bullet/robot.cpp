@@ -4,7 +4,12 @@
 #include <cmath>
 #include <limits>
 
+// Bullet's inline btBoxShape::getPlane leaves part of a vector unset, which GCC reports wherever the box's
+// virtual functions are emitted, as they are here.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #include <btBulletDynamicsCommon.h>
+#pragma GCC diagnostic pop
 
 #include <BulletCollision/CollisionShapes/btMultiSphereShape.h>
 #include <BulletDynamics/Featherstone/btMultiBody.h>
@@ -13,6 +18,7 @@
 #include <BulletDynamics/Featherstone/btMultiBodyJointMotor.h>
 #include <BulletDynamics/Featherstone/btMultiBodyLinkCollider.h>
 
+#include "envs/bullet/world_sized_box.h"
 #include "hlt/util/error.h"
 
 static_assert(sizeof(btScalar) == sizeof(double),
@@ -55,15 +61,25 @@ bool is_single_sphere_at(const std::vector<Shape>& shapes, const Eigen::Vector3d
   return shapes.size() == 1 && shapes[0].is_sphere() && shapes[0].from == com;
 }
 
+bool is_single_box_at(const std::vector<Shape>& shapes, const Eigen::Vector3d& com) {
+  return shapes.size() == 1 && shapes[0].is_box() && shapes[0].from == com;
+}
+
 void check_body(const BodySpec& b, const std::string& robot) {
   check(b.mass >= 0 && std::isfinite(b.mass), "robot '{}': body '{}' has mass {}", robot, b.name, b.mass);
   check(finite(b.inertia) && (b.inertia.array() >= 0).all(), "robot '{}': body '{}' has a negative inertia",
         robot, b.name);
   check(finite(b.com), "robot '{}': body '{}' has a non-finite COM", robot, b.name);
   for (const Shape& s : b.shapes) {
-    check(s.radius > 0 && finite(s.from) && finite(s.to), "robot '{}': body '{}' has a degenerate shape",
-          robot, b.name);
+    const bool sized = s.is_box()
+                           ? (s.half_extents.array() > 0).all() && finite(s.half_extents) && s.from == s.to
+                           : s.radius > 0;
+    check(sized && finite(s.from) && finite(s.to), "robot '{}': body '{}' has a degenerate shape", robot,
+          b.name);
   }
+  check(!b.world_sized_bounds || is_single_box_at(b.shapes, b.com),
+        "robot '{}': body '{}' asks for world-sized bounds, which only a lone box at its COM can have", robot,
+        b.name);
 }
 
 }  // namespace
@@ -102,7 +118,9 @@ Eigen::Vector3d estimated_inertia(double mass, const std::vector<Shape>& shapes,
   for (const Shape& s : shapes) {
     Eigen::Vector3d centre = 0.5 * (s.from + s.to) - com;
     Eigen::Vector3d half = Eigen::Vector3d::Constant(s.radius);
-    if (s.sphere_pair) {
+    if (s.is_box()) {
+      half = s.half_extents;
+    } else if (s.sphere_pair) {
       half = 0.5 * (s.to - s.from).cwiseAbs() + Eigen::Vector3d::Constant(s.radius + kCollisionMargin);
     } else if (!s.is_sphere()) {
       // Bullet bounds a capsule by its local box (r, r, r + half length) turned into the parent frame.
@@ -216,12 +234,24 @@ Robot::Robot(btMultiBodyDynamicsWorld& world, RobotSpec spec) : world_(world), s
       // PyBullet uses a lone shape sitting at the COM directly instead of wrapping it in a compound.
       shapes_.push_back(std::make_unique<btSphereShape>(b.shapes[0].radius));
       shape = shapes_.back().get();
+    } else if (is_single_box_at(b.shapes, b.com)) {
+      // Likewise a lone box at the COM, which keeps box-box pairs on Bullet's box-box detector.
+      const btVector3 half = to_bt(b.shapes[0].half_extents);
+      if (b.world_sized_bounds) {
+        shapes_.push_back(std::make_unique<WorldSizedBox>(half));
+      } else {
+        shapes_.push_back(std::make_unique<btBoxShape>(half));
+      }
+      shape = shapes_.back().get();
     } else {
       auto compound = std::make_unique<btCompoundShape>();
       for (const Shape& s : b.shapes) {
         std::unique_ptr<btCollisionShape> child;
         btTransform local = btTransform::getIdentity();
-        if (s.is_sphere()) {
+        if (s.is_box()) {
+          child = std::make_unique<btBoxShape>(to_bt(s.half_extents));
+          local.setOrigin(to_bt(s.from - b.com));
+        } else if (s.is_sphere()) {
           child = std::make_unique<btSphereShape>(s.radius);
           local.setOrigin(to_bt(s.from - b.com));
         } else if (s.sphere_pair) {
@@ -400,7 +430,7 @@ std::vector<Shape> Robot::world_shapes(int link) const {
   const Eigen::Isometry3d pose = body_pose(link);
   std::vector<Shape> out;
   for (const Shape& s : b.shapes)
-    out.push_back({pose * (s.from - b.com), pose * (s.to - b.com), s.radius, s.sphere_pair});
+    out.push_back({pose * (s.from - b.com), pose * (s.to - b.com), s.radius, s.sphere_pair, s.half_extents});
   return out;
 }
 

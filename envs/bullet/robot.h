@@ -22,7 +22,9 @@ class btCollisionShape;
 
 namespace hlt::bullet {
 
-// A collision/drawing primitive in world coordinates at the zero configuration. A sphere has from == to.
+// A collision/drawing primitive in world coordinates at the zero configuration. A sphere has from == to; a
+// box (half_extents set) is centred on `from` with its edges along the body's axes (the world's at the zero
+// configuration).
 struct Shape {
   Eigen::Vector3d from = Eigen::Vector3d::Zero();
   Eigen::Vector3d to = Eigen::Vector3d::Zero();
@@ -31,17 +33,22 @@ struct Shape {
   // capsule, instead of a btCapsuleShapeZ. The surface is the same, but Bullet's collision margin, bounding
   // box and hence contact-breaking threshold and inertia estimate differ.
   bool sphere_pair = false;
+  Eigen::Vector3d half_extents = Eigen::Vector3d::Zero();
 
   static Shape capsule(const Eigen::Vector3d& from, const Eigen::Vector3d& to, double radius) {
-    return {from, to, radius, false};
+    return {from, to, radius, false, Eigen::Vector3d::Zero()};
   }
   static Shape sphere_pair_capsule(const Eigen::Vector3d& from, const Eigen::Vector3d& to, double radius) {
-    return {from, to, radius, true};
+    return {from, to, radius, true, Eigen::Vector3d::Zero()};
   }
   static Shape sphere(const Eigen::Vector3d& centre, double radius) {
-    return {centre, centre, radius, false};
+    return {centre, centre, radius, false, Eigen::Vector3d::Zero()};
   }
-  bool is_sphere() const { return from == to; }
+  static Shape box(const Eigen::Vector3d& centre, const Eigen::Vector3d& half_extents) {
+    return {centre, centre, 0.0, false, half_extents};
+  }
+  bool is_box() const { return (half_extents.array() > 0).any(); }
+  bool is_sphere() const { return from == to && !is_box(); }
 };
 
 // What the base and every link share: inertial data and shapes.
@@ -59,6 +66,9 @@ struct BodySpec {
   double restitution = 0.0;
   int collision_group = 1;
   int collision_mask = -1;
+  // Give a lone box a bounding box the size of the world, so that every broadphase pair it is in lasts as
+  // long as the world (and with it the pair's contact manifold, which snapshots rely on: see World).
+  bool world_sized_bounds = false;
 };
 
 enum class JointType { kFixed, kRevolute, kPrismatic };
@@ -154,7 +164,8 @@ class Robot {
   Eigen::Vector3d com_position(int link) const;
   Eigen::Quaterniond com_orientation(int link) const;
   Eigen::Vector3d com_linear_velocity(int link) const;
-  // A body's shapes in world coordinates at the current configuration.
+  // A body's shapes in world coordinates at the current configuration (a box's edges run along the body's
+  // current axes, body_pose(link).linear()).
   std::vector<Shape> world_shapes(int link) const;
 
   // Everything that determines the next step: base pose and velocity, joint positions and velocities.

@@ -12,6 +12,7 @@
 #include <BulletDynamics/Featherstone/btMultiBodyDynamicsWorld.h>
 #include <BulletDynamics/Featherstone/btMultiBodyLinkCollider.h>
 
+#include "envs/bullet/world_sized_box.h"
 #include "hlt/util/error.h"
 
 namespace hlt::bullet {
@@ -154,6 +155,25 @@ void World::add_ground(double friction, double restitution) {
                              btBroadphaseProxy::AllFilter ^ btBroadphaseProxy::StaticFilter);
   static_shapes_.push_back(std::move(shape));
   static_objects_.push_back(std::move(ground));
+  setup_contact_cache();
+}
+
+void World::add_static_box(const Eigen::Vector3d& centre, const Eigen::Vector3d& half_extents,
+                           double friction, double restitution) {
+  check(centre.allFinite() && half_extents.allFinite() && (half_extents.array() > 0).all(),
+        "Bullet world: a static box needs a finite centre and positive half extents");
+  auto shape =
+      std::make_unique<WorldSizedBox>(btVector3(half_extents.x(), half_extents.y(), half_extents.z()));
+  auto box = std::make_unique<btCollisionObject>();
+  box->setCollisionShape(shape.get());
+  box->setWorldTransform(
+      btTransform(btQuaternion::getIdentity(), btVector3(centre.x(), centre.y(), centre.z())));
+  box->setFriction(friction);
+  box->setRestitution(restitution);
+  world_->addCollisionObject(box.get(), btBroadphaseProxy::StaticFilter,
+                             btBroadphaseProxy::AllFilter ^ btBroadphaseProxy::StaticFilter);
+  static_shapes_.push_back(std::move(shape));
+  static_objects_.push_back(std::move(box));
   setup_contact_cache();
 }
 

@@ -38,7 +38,11 @@ class World {
   Robot& add_robot(RobotSpec spec);
   // A static plane z = 0.
   void add_ground(double friction, double restitution);
-  // Both of the above end by setting up the contact cache for the new set of objects (see save_state).
+  // A static box (a table), edges along the world axes. Its bounding box is world-sized, so every pair it is
+  // in keeps its manifold for the world's lifetime, as a ground plane's do.
+  void add_static_box(const Eigen::Vector3d& centre, const Eigen::Vector3d& half_extents, double friction,
+                      double restitution);
+  // All of the above end by setting up the contact cache for the new set of objects (see save_state).
 
   // Advances `dt` seconds in `substeps` equal sub-steps. Each robot's pending joint forces act during every
   // sub-step (as a torque set before PyBullet's stepSimulation does) and are cleared afterwards.
