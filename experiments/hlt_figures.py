@@ -49,7 +49,8 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 from hlt_results import (LABELS, REPO, ResultsError, find_runs, last_common_step, mean_band,  # noqa: E402
-                         read_config, read_scalars, registry, sorted_curve, values_at)
+                         finish_registry, read_config, read_scalars, sorted_curve, start_registry,
+                         values_at)
 
 PROG = "hlt_figures"
 EVAL_TAG = "eval/return_mean"
@@ -583,7 +584,11 @@ def main():
                     if not logged or logged[-1] < srun.steps:
                         rep["short"].append(srun)
         groups = make_groups(runs)
-        reg = registry(args.train)
+        started = start_registry(args.train)  # LibTorch loads while matplotlib does
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        reg = finish_registry(started)
         for spec in FIGURES:
             for method in spec.methods:
                 if method not in reg.methods:
@@ -617,10 +622,6 @@ def main():
                 if len(s[1]) < len(group.runs):
                     notes.append(f"{group.env}/{group.label}: {len(group.runs) - len(s[1])} seed(s) without "
                                  f"{EVAL_TAG}")
-
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     os.makedirs(args.out, exist_ok=True)
     drawn = {}

@@ -80,17 +80,33 @@ def _help_names(text, option):
     return []
 
 
-def registry(train=None):
-    """The Registry read from `hlt_train --help` (its --env and --method lines, names separated by ' | ')."""
+def start_registry(train=None):
+    """Starts `hlt_train --help` (LibTorch takes about a second to load), to be read by finish_registry."""
     path = train_binary(train)
     try:
-        out = subprocess.run([path, "--help"], capture_output=True, text=True, timeout=60)
-    except (OSError, subprocess.TimeoutExpired) as e:
+        proc = subprocess.Popen([path, "--help"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    except OSError as e:
         raise ResultsError(f"cannot run {path} --help: {e}")
-    envs, methods = _help_names(out.stdout, "--env"), _help_names(out.stdout, "--method")
-    if out.returncode != 0 or not envs or not methods:
-        raise ResultsError(f"{path} --help did not list environments and methods (exit {out.returncode})")
+    return path, proc
+
+
+def finish_registry(started):
+    """The Registry from a started `hlt_train --help`: its --env and --method lines, names split at ' | '."""
+    path, proc = started
+    try:
+        out, _ = proc.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        raise ResultsError(f"{path} --help did not end within 60 s")
+    envs, methods = _help_names(out, "--env"), _help_names(out, "--method")
+    if proc.returncode != 0 or not envs or not methods:
+        raise ResultsError(f"{path} --help did not list environments and methods (exit {proc.returncode})")
     return Registry(envs, methods, path)
+
+
+def registry(train=None):
+    """The Registry read from `hlt_train --help`."""
+    return finish_registry(start_registry(train))
 
 
 def alphabetical_registry(names_envs, names_methods):
