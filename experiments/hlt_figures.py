@@ -346,6 +346,11 @@ def imitation_curve(run, tag):
     return np.array([p[0] for p in points]), np.array([p[1] for p in points])
 
 
+def matplotlib_ticker():
+    import matplotlib.ticker
+    return matplotlib.ticker
+
+
 def imitation_figure(groups, reg, names, args, plt, notes):
     imitation = [g for gs in groups.values() for g in gs if any(IMITATION_X in r.scalars for r in g.runs)]
     if not imitation:
@@ -371,6 +376,7 @@ def imitation_figure(groups, reg, names, args, plt, notes):
                                f"{int(grid[-1])} demonstrations")
         ax.set_title(env)
         ax.set_xlabel("expert demonstrations")
+        ax.xaxis.set_major_locator(matplotlib_ticker().MaxNLocator(integer=True))
         ax.set_ylabel("return")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="best")
@@ -414,21 +420,22 @@ def table_section(groups, stats, reg, reference):
              "| method | " + " | ".join(env + marks.get(env, "") for env in envs) + " |",
              "|---|" + "---|" * len(envs)]
     for method in methods:
-        variants = max((len(groups.get((env, method), [])) for env in envs), default=0)
-        for index in range(max(variants, 1)):
-            cells, label = [], None
+        # the method's own row (its main variant on every environment), then a row per other variant: the
+        # same differing keys on two environments share a row
+        labels = [method] + list(dict.fromkeys(g.label for env in envs for g in groups.get((env, method), [])[1:]))
+        for label in labels:
+            cells = []
             for env in envs:
-                gs = groups.get((env, method), [])
+                group = next((g for g in groups.get((env, method), []) if g.label == label), None)
                 ours = ""
-                if index < len(gs):
-                    label = label or gs[index].label
-                    s = stats.get(id(gs[index]))
-                    ours = (f"{fmt(s[2], s[3])} (n={len(s[1])}, {steps_text(s[0], frame_skip(gs[index]))})"
+                if group is not None:
+                    s = stats.get(id(group))
+                    ours = (f"{fmt(s[2], s[3])} (n={len(s[1])}, {steps_text(s[0], frame_skip(group))})"
                             if s else f"no {EVAL_TAG}")
-                paper = (ref.get(env) or {}).get(method) if index == 0 else None
+                paper = (ref.get(env) or {}).get(method) if label == method else None
                 paper = f"paper {fmt(*paper)}" if paper else ""
                 cells.append("; ".join(c for c in (ours, paper) if c) or "-")
-            lines.append(f"| {label or method} | " + " | ".join(cells) + " |")
+            lines.append(f"| {label} | " + " | ".join(cells) + " |")
     for i, note in enumerate(footnotes):
         lines += ["", "*" * (i + 1) + note.get("text", "")]
     return "\n".join(lines)

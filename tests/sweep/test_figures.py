@@ -103,6 +103,11 @@ def build_tree(root):
             "eval/return_mean": ramp(final, start=-1500.0),
             "train/mode_insertion_gradient": [(0, 2.0), (8000, 0.1)],
         })
+    # pendulum hybrid-stochastic: two variants of one seed each (the first directory's is the main one); its
+    # other variant differs in another key than the cart-pole's, so it gets a row of its own
+    make_run(root, "pendulum", "hybrid-stochastic", 0, {"eval/return_mean": ramp(-120.0, start=-1500.0)})
+    make_run(root, "pendulum", "hybrid-stochastic", 1, {"eval/return_mean": ramp(-130.0, start=-1500.0)},
+             horizon=9)
     # an imitation run: demonstrations 1, 2, 3 at steps 1000, 2000, 3000
     make_run(root, "ant", "hybrid-stochastic", 0, {
         "eval/return_mean": ramp(50.0),
@@ -190,6 +195,11 @@ class Figures(unittest.TestCase):
         # the variant is a row of its own, without the paper's number
         self.assertEqual(rows["hybrid-stochastic [planner.horizon=7]"]["cartpole_swingup"],
                          "100.0 +- 0.0 (n=1, 8000 env steps (2000 agent steps))")
+        self.assertEqual(rows["hybrid-stochastic [planner.horizon=7]"]["pendulum"], "-")
+        self.assertEqual(rows["hybrid-stochastic"]["pendulum"], "-120.0 +- 0.0 (n=1, 8000 env steps (2000 agent steps))")
+        self.assertEqual(rows["hybrid-stochastic [planner.horizon=9]"]["pendulum"],
+                         "-130.0 +- 0.0 (n=1, 8000 env steps (2000 agent steps))")
+        self.assertEqual(rows["hybrid-stochastic [planner.horizon=9]"]["cartpole_swingup"], "-")
         # the published layout: acrobot is a column (paper numbers only), methods without runs are rows
         self.assertIn("acrobot", header)
         self.assertEqual(rows["mppi"]["acrobot"], "paper -55.2 +- 13.9")
