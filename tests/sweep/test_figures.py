@@ -196,7 +196,8 @@ class Figures(unittest.TestCase):
         self.assertEqual(rows["hybrid-stochastic [planner.horizon=7]"]["cartpole_swingup"],
                          "100.0 +- 0.0 (n=1, 8000 env steps (2000 agent steps))")
         self.assertEqual(rows["hybrid-stochastic [planner.horizon=7]"]["pendulum"], "-")
-        self.assertEqual(rows["hybrid-stochastic"]["pendulum"], "-120.0 +- 0.0 (n=1, 8000 env steps (2000 agent steps))")
+        self.assertEqual(rows["hybrid-stochastic"]["pendulum"],
+                         "-120.0 +- 0.0 (n=1, 8000 env steps (2000 agent steps))")
         self.assertEqual(rows["hybrid-stochastic [planner.horizon=9]"]["pendulum"],
                          "-130.0 +- 0.0 (n=1, 8000 env steps (2000 agent steps))")
         self.assertEqual(rows["hybrid-stochastic [planner.horizon=9]"]["cartpole_swingup"], "-")
