@@ -44,7 +44,11 @@ import re
 import shlex
 import sys
 
-import numpy as np
+try:
+    import numpy as np
+except ImportError:  # pragma: no cover
+    sys.stderr.write("hlt_figures: error: needs numpy: run with Debian's /usr/bin/python3\n")
+    sys.exit(2)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
@@ -594,9 +598,13 @@ def main():
                         rep["short"].append(srun)
         groups = make_groups(runs)
         started = start_registry(args.train)  # LibTorch loads while matplotlib does
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        try:
+            import matplotlib
+            matplotlib.use("Agg")
+            import matplotlib.pyplot as plt
+        except ImportError:
+            raise ResultsError("needs matplotlib: run with Debian's /usr/bin/python3 (apt-get install "
+                               "python3-matplotlib)")
         reg = finish_registry(started)
         for spec in FIGURES:
             for method in spec.methods:

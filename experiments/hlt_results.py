@@ -143,7 +143,10 @@ def top_level_value(config_path, key):
 
 def read_config(run):
     """config.yaml as a flat dict {'section.key': value} (needs PyYAML); the '# blas:' comment is skipped."""
-    import yaml
+    try:
+        import yaml
+    except ImportError:
+        raise ResultsError("needs PyYAML: run with Debian's /usr/bin/python3 (apt-get install python3-yaml)")
     path = os.path.join(run, "config.yaml")
     try:
         with open(path) as f:
