@@ -2,7 +2,7 @@
 """hlt_figures: the paper's figures and its table of final returns, made from a results tree in one command.
 
     experiments/hlt_figures.py RESULTS [...] --out docs/figures
-        [--markdown FILE] [--update docs/RESULTS.md] [--sweep SWEEP.yaml ...] [--max-step N]
+        [--markdown FILE] [--update docs/RESULTS.md] [--sweep SWEEP.yaml ...] [--max-step N] [--pool-key KEY ...]
         [--train build/experiments/hlt_train] [--reference experiments/reference_results.yaml]
 
 Reads every hlt_train run directory below RESULTS (config.yaml and scalars.csv, parsed by hlt_results.py),
@@ -31,10 +31,10 @@ docs/RESULTS.md includes the regenerated tables verbatim.
 
 Order and colours of methods and environments are the registry's (hlt_train --help); the figures' methods
 are checked against it. Runs of one environment and method whose configs differ in more than the seed (and
-threads, checkpoint.every, train.agent_steps) are variants, labelled by the differing keys; the variant with
-most seeds carries the method's name. The final return of a group is each seed's eval/return_mean at the
-last evaluation step all its seeds reached (at most --max-step); std is over seeds with ddof 0. With --sweep
-only the runs the sweep files list are used, and runs they list but the tree lacks are reported. Missing
+threads, checkpoint.every, train.agent_steps, and the keys given with --pool-key) are variants, labelled by
+the differing keys; the variant with most seeds carries the method's name. The final return of a group is
+each seed's eval/return_mean at the last evaluation step all its seeds reached (at most --max-step); std is
+over seeds with ddof 0. With --sweep only the runs the sweep files list are used, and runs they list but the tree lacks are reported. Missing
 environments, methods and tags are skipped with a note; bad input (malformed scalars.csv, no runs, a seed
 twice) is an error 'hlt_figures: error: ...' with exit code 2.
 """
@@ -129,14 +129,14 @@ def show(value):
     return "missing" if value is None else str(value)
 
 
-def make_groups(runs):
-    """{(env, method): [Group, ...]} with the variant of most seeds first."""
+def make_groups(runs, pooled=()):
+    """{(env, method): [Group, ...]} with the variant of most seeds first; keys in pooled make no variant."""
     by_pair = {}
     for run in runs:
         by_pair.setdefault((run.env, run.method), []).append(run)
     groups = {}
     for (env, method), members in by_pair.items():
-        keys = set.intersection(*(set(r.config) for r in members)) - NOT_VARIANT
+        keys = set.intersection(*(set(r.config) for r in members)) - NOT_VARIANT - set(pooled)
         variants = {}
         for run in members:
             signature = tuple(sorted((k, repr(run.config[k])) for k in keys))
@@ -488,6 +488,9 @@ def provenance_section(args, runs, groups, reg, reports, left_out):
         for group in groups[key]:
             lines.append(f"- {group.env} / {group.label}: seeds {', '.join(map(str, group.seeds))}")
     lines.append("")
+    if args.pool_key:
+        lines += ["Pooled although their configs differ in: " + ", ".join(f"`{k}`" for k in args.pool_key)
+                  + " (`--pool-key`).", ""]
     if not reports:
         lines.append("No sweep file given (`--sweep`): every run found was used.")
     for rep in reports:
@@ -562,6 +565,9 @@ def main():
                         help="sweep file the runs came from (repeatable): only its runs are used, and the file "
                              "is quoted in the provenance section")
     parser.add_argument("--max-step", type=int, default=0, help="cut curves and the table at this environment step")
+    parser.add_argument("--pool-key", action="append", default=[], metavar="KEY",
+                        help="a config key (e.g. planner.density_tanh_correction) whose differences make no "
+                             "variant: runs differing only in it are pooled (repeatable; said in provenance)")
     parser.add_argument("--train", help="hlt_train, whose --help is the registry (default "
                         "$HLT_BUILD_DIR/experiments/hlt_train, else build/experiments/hlt_train)")
     parser.add_argument("--reference", default=os.path.join(HERE, "reference_results.yaml"),
@@ -596,7 +602,7 @@ def main():
                     logged = run.scalars.get("train/agent_steps", ([], []))[1]
                     if not logged or logged[-1] < srun.steps:
                         rep["short"].append(srun)
-        groups = make_groups(runs)
+        groups = make_groups(runs, args.pool_key)
         started = start_registry(args.train)  # LibTorch loads while matplotlib does
         try:
             import matplotlib

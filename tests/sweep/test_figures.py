@@ -242,16 +242,23 @@ class Figures(unittest.TestCase):
 
     def test_sweep_selects_its_runs_and_reports_missing_ones(self):
         sweep = write(os.path.join(WORK, "pendulum.yaml"),
-                      "envs: [pendulum]\nmethods: [hybrid-deterministic]\nseeds: 0-2\nsteps: 2000\n")
-        r = figures(self.tree, "--out", os.path.join(WORK, "sweep_figs"), "--sweep", sweep)
+                      "envs: [pendulum]\nmethods: [hybrid-deterministic, hybrid-stochastic]\nseeds: 0-2\n"
+                      "steps: 2000\n")
+        r = figures(self.tree, "--out", os.path.join(WORK, "sweep_figs"), "--sweep", sweep,
+                    "--pool-key", "planner.horizon")
         self.assertEqual(r.returncode, 0, r.stderr)
         with open(os.path.join(WORK, "sweep_figs", "results.md")) as f:
             text = f.read()
         provenance = section(text, "provenance")
-        self.assertIn("(3 runs, 2 found; missing: pendulum/hybrid-deterministic seed 2)", provenance)
+        self.assertIn("(6 runs, 4 found; missing: pendulum/hybrid-deterministic seed 2; "
+                      "pendulum/hybrid-stochastic seed 2)", provenance)
         self.assertIn("seeds: 0-2", provenance)  # the sweep file itself, verbatim
-        self.assertIn("from 2 runs", provenance)
+        self.assertIn("from 4 runs", provenance)
+        self.assertIn("`planner.horizon` (`--pool-key`)", provenance)
         _, rows = table_cells(text)
+        # --pool-key: the two horizons pooled, -120 and -130
+        self.assertEqual(rows["hybrid-stochastic"]["pendulum"],
+                         "-125.0 +- 5.0 (n=2, 8000 env steps (2000 agent steps))")
         self.assertEqual(rows["sac"]["cartpole_swingup"], "paper 740.4 +- 197.5")  # not in the sweep: left out
 
     def test_hlt_plot_orders_methods_by_the_registry(self):
