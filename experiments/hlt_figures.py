@@ -34,9 +34,9 @@ are checked against it. Runs of one environment and method whose configs differ 
 threads, checkpoint.every, train.agent_steps, and the keys given with --pool-key) are variants, labelled by
 the differing keys; the variant with most seeds carries the method's name. The final return of a group is
 each seed's eval/return_mean at the last evaluation step all its seeds reached (at most --max-step); std is
-over seeds with ddof 0. With --sweep only the runs the sweep files list are used, and runs they list but the tree lacks are reported. Missing
-environments, methods and tags are skipped with a note; bad input (malformed scalars.csv, no runs, a seed
-twice) is an error 'hlt_figures: error: ...' with exit code 2.
+over seeds with ddof 0. With --sweep only the runs the sweep files list are used, and runs they list but
+the tree lacks are reported. Missing environments, methods and tags are skipped with a note; bad input
+(malformed scalars.csv, no runs, a seed twice) is an error 'hlt_figures: error: ...' with exit code 2.
 """
 import argparse
 import os
