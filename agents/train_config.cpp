@@ -38,7 +38,9 @@ Config make_train_config() {
                1, big)
       .add_string("imitation.expert", "",
                   "imitation methods: the demonstrator, expert:PATH (agents/experts/) or a simple policy "
-                  "(zero, random, constant:V); paths are relative to the working directory")
+                  "(zero, random, constant:V); hlt_train looks a relative path up from the working "
+                  "directory, then from "
+                  "the repository")
       .add_int("imitation.iterations", 10, "imitation methods: iterations, one demonstration each (Alg. 3)",
                1, 100000)
       .add_int("imitation.demo_steps", 200, "imitation methods: agent steps per demonstration", 1, 1000000)
