@@ -7,19 +7,17 @@
 
 #include <ATen/core/Tensor.h>
 
+#include "agents/learner.h"
 #include "hlt/nn/flat_adam.h"
 #include "hlt/nn/gaussian_policy.h"
 
 namespace hlt {
 
-class CheckpointWriter;
-class CheckpointReader;
-
 struct BehaviourCloningOptions {
   double lr = 0.01;
 };
 
-class BehaviourCloning {
+class BehaviourCloning : public Learner {
  public:
   BehaviourCloning(GaussianPolicy policy, const BehaviourCloningOptions& options);
 
@@ -27,11 +25,14 @@ class BehaviourCloning {
   double loss(const at::Tensor& states, const at::Tensor& actions);
   // One Adam step on that loss; returns the loss before the step.
   double update(const at::Tensor& states, const at::Tensor& actions);
+  // The Learner view of update on a batch's states and actions: loss/bc.
+  const char* learner_name() const override { return "behaviour cloning"; }
+  NamedLosses train(const Batch& batch) override;
 
   GaussianPolicy& policy() { return policy_; }
   // The optimizer's state (the policy is checkpointed with the other shared networks).
-  void save_training_state(CheckpointWriter& writer) const;
-  void load_training_state(CheckpointReader& reader);
+  void save_training_state(CheckpointWriter& writer) const override;
+  void load_training_state(CheckpointReader& reader) override;
 
  private:
   at::Tensor nll(const at::Tensor& states, const at::Tensor& actions);

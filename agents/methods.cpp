@@ -14,10 +14,15 @@ namespace {
 
 const std::vector<MethodSpec>& methods() {
   static const std::vector<MethodSpec> table = {
-#define HLT_METHOD(name, controller, planner, policy, models, description) \
-  {name, controller, planner, policy, models, description},
+#define HLT_LEARNERS(...)   \
+  std::vector<LearnerUse> { \
+    __VA_ARGS__             \
+  }
+#define HLT_METHOD(name, loop, controller, planner, learners, description) \
+  {name, loop, controller, planner, learners, description},
 #include "agents/method_list.inc"
 #undef HLT_METHOD
+#undef HLT_LEARNERS
   };
   return table;
 }

@@ -15,12 +15,29 @@
 
 namespace hlt {
 
+// One learner a method trains: which, on what data, and how often.
+struct LearnerUse {
+  std::string learner;      // a name in agents/learner_list.inc
+  std::string data;         // kReplayData or kDemonstrationData
+  std::string updates_key;  // config key: updates per agent step (online loop) or per iteration (imitation)
+};
+
+// The data sources a learner can sample from. The replay buffer D holds everything the agent did (and, in
+// imitation, the demonstrations too); the demonstration buffer D_exp holds the expert's transitions alone.
+inline constexpr const char* kReplayData = "replay";
+inline constexpr const char* kDemonstrationData = "demonstrations";
+
+// The outer loops: Alg. 1 and 2's (act, store, update at every agent step) and Alg. 3's (per iteration: one
+// demonstration, the updates, one test episode).
+inline constexpr const char* kOnlineLoop = "online";
+inline constexpr const char* kImitationLoop = "imitation";
+
 struct MethodSpec {
   std::string name;
-  std::string controller;          // acts during training and in the method's own evaluation
+  std::string loop;        // kOnlineLoop or kImitationLoop
+  std::string controller;  // acts during training (the imitation loop's test episodes) and in evaluation
   std::string planner_controller;  // the model-based planner alone, for the component evaluation ("" if none)
-  bool trains_policy = false;      // SAC updates
-  bool trains_models = false;      // dynamics + reward updates
+  std::vector<LearnerUse> learners;  // in the order they are built, updated and logged
   std::string description;
 };
 

@@ -4,15 +4,13 @@
 
 #include <memory>
 
+#include "agents/learner.h"
 #include "hlt/data/replay_buffer.h"
 #include "hlt/nn/dynamics_model.h"
 #include "hlt/nn/flat_adam.h"
 #include "hlt/nn/reward_model.h"
 
 namespace hlt {
-
-class CheckpointWriter;
-class CheckpointReader;
 
 struct ModelLearnerOptions {
   double lr = 3e-3;
@@ -25,16 +23,19 @@ struct ModelLosses {
   double reward = 0;    // TD loss
 };
 
-class ModelLearner {
+class ModelLearner : public Learner {
  public:
   ModelLearner(DynamicsModel dynamics, RewardModel reward, const ModelLearnerOptions& options);
   ModelLosses update(const Batch& batch);
+  // The Learner view of update: loss/dynamics, loss/reward.
+  const char* learner_name() const override { return "model"; }
+  NamedLosses train(const Batch& batch) override;
   // Both models and the optimizer.
   void save(CheckpointWriter& writer) const;
   void load(CheckpointReader& reader);
   // The optimizer alone (the caller checkpoints the models with the other shared networks).
-  void save_training_state(CheckpointWriter& writer) const;
-  void load_training_state(CheckpointReader& reader);
+  void save_training_state(CheckpointWriter& writer) const override;
+  void load_training_state(CheckpointReader& reader) override;
 
  private:
   ModelLearnerOptions options_;

@@ -10,6 +10,7 @@
 #include <memory>
 #include <vector>
 
+#include "agents/learner.h"
 #include "hlt/data/replay_buffer.h"
 #include "hlt/nn/dense_layers.h"
 #include "hlt/nn/flat_adam.h"
@@ -17,9 +18,6 @@
 #include "hlt/nn/twin_q_network.h"
 
 namespace hlt {
-
-class CheckpointWriter;
-class CheckpointReader;
 
 struct SacOptions {
   double gamma = 0.99;
@@ -43,13 +41,16 @@ struct SacLosses {
   double entropy = 0;  // -E[log pi] of the batch's fresh actions
 };
 
-class Sac {
+class Sac : public Learner {
  public:
   Sac(GaussianPolicy policy, int64_t state_dim, int64_t action_dim, const SacOptions& options);
 
   // One gradient step of the critics, the policy and the temperature on `batch`. The gradients are
   // written by hand-written backward passes (tested against autograd's in tests/agents/sac_test.cpp).
   SacLosses update(const Batch& batch);
+  // The Learner view of update: its losses as loss/critic, loss/actor, sac/alpha, sac/entropy.
+  const char* learner_name() const override { return "SAC"; }
+  NamedLosses train(const Batch& batch) override;
 
   GaussianPolicy& policy() { return policy_; }
   // The critics (their .grad()s hold the last update's critic gradient): for tests and analysis.
@@ -60,8 +61,8 @@ class Sac {
   void save(CheckpointWriter& writer) const;
   void load(CheckpointReader& reader);
   // The same without the policy (which the caller checkpoints with the other shared networks).
-  void save_training_state(CheckpointWriter& writer) const;
-  void load_training_state(CheckpointReader& reader);
+  void save_training_state(CheckpointWriter& writer) const override;
+  void load_training_state(CheckpointReader& reader) override;
 
  private:
   SacOptions options_;

@@ -36,6 +36,26 @@ Config make_train_config() {
                 "(planner.density_tanh_correction toggled), logged as eval/other_density_return_mean")
       .add_int("checkpoint.every", 5000, "agent steps between checkpoints (written at the next episode end)",
                1, big)
+      .add_string("imitation.expert", "",
+                  "imitation methods: the demonstrator, expert:PATH (agents/experts/) or a simple policy "
+                  "(zero, random, constant:V); hlt_train looks a relative path up from the working "
+                  "directory, then from "
+                  "the repository")
+      .add_int("imitation.iterations", 10, "imitation methods: iterations, one demonstration each (Alg. 3)",
+               1, 100000)
+      .add_int("imitation.demo_steps", 200, "imitation methods: agent steps per demonstration", 1, 1000000)
+      .add_int("imitation.test_steps", 400,
+               "imitation methods: agent steps of each test episode (0: the environment's own limit)", 0,
+               1000000)
+      .add_int("imitation.policy_updates", 500,
+               "imitation methods: behaviour-cloning updates per iteration (batches from D_exp)", 0, 1000000)
+      .add_int("imitation.model_updates", 500,
+               "imitation methods: dynamics + reward model updates per iteration (batches from D)", 0,
+               1000000)
+      .add_bool("imitation.expert_episode", true,
+                "imitation methods: also run the demonstrator from each test episode's start and log "
+                "imitation/expert_return (the expert's level in the same episode)")
+      .add_double("bc.lr", 0.01, "Adam learning rate of behaviour cloning", 1e-8, 1.0)
       .add_int("model.hidden", 200, "dynamics model hidden width", 1, 100000)
       .add_string("model.activation", "sin", "dynamics model hidden activation", {"sin", "relu"})
       .add_int("model.reward_hidden", 200, "reward model hidden width (two layers)", 1, 100000)

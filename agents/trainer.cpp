@@ -6,14 +6,14 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 
 #include "agents/controller_policy.h"
+#include "agents/learner.h"
 #include "agents/methods.h"
-#include "agents/model_learner.h"
-#include "agents/sac.h"
+#include "agents/policy_spec.h"
 #include "agents/train_config.h"
 #include "envs/registry.h"
-#include "hlt/control/deterministic_hybrid.h"
 #include "hlt/core/checkpoint.h"
 #include "hlt/core/runtime.h"
 #include "hlt/data/replay_buffer.h"
@@ -36,8 +36,17 @@ double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-// Seed streams derived from the run seed (see derive_seed).
-enum Stream : uint64_t { kReplay = 1, kTrainEpisode = 2, kEvalEpisode = 3, kSacNoise = 4 };
+// Seed streams derived from the run seed (see derive_seed). Learner i's generator is kLearnerNoise + i (SAC,
+// first wherever it trains, keeps the stream it always had).
+enum Stream : uint64_t {
+  kReplay = 1,
+  kTrainEpisode = 2,
+  kEvalEpisode = 3,
+  kLearnerNoise = 4,
+  kDemonstrationReplay = 64,
+  kDemonstrationEpisode = 65,
+  kDemonstrator = 66,
+};
 
 // The header of config.yaml: what the run's numbers depend on besides its settings. The same seed gives
 // the same numbers only with the same BLAS kernel.
@@ -65,19 +74,29 @@ struct Trainer::Impl {
   uint64_t seed = 0;
   std::unique_ptr<FrameSkip> env, eval_env;
   LearnedModels models;
-  std::unique_ptr<Sac> sac;
-  std::unique_ptr<ModelLearner> learner;
-  std::unique_ptr<ReplayBuffer> buffer;
+  // A learner of the method with the data it samples and this episode's (or iteration's) mean losses.
+  struct ActiveLearner {
+    std::unique_ptr<Learner> learner;
+    ReplayBuffer* data = nullptr;
+    int64_t updates = 0;  // per agent step (online loop) or per iteration (imitation loop)
+    std::vector<std::pair<const char*, Stats>> losses;
+  };
+  std::vector<ActiveLearner> learners;
+  std::unique_ptr<ReplayBuffer> buffer;          // D
+  std::unique_ptr<ReplayBuffer> demonstrations;  // D_exp (imitation loop only)
+  bool imitation = false;
   std::unique_ptr<Controller> controller;
   std::vector<std::pair<std::string, std::unique_ptr<Controller>>> evaluators;  // label, controller
   std::unique_ptr<ScalarLogger> log;
-  std::unique_ptr<WorkerThread> worker;  // train.threads = 2: runs the SAC updates beside the model updates
+  // train.threads = 2: runs the first learner's updates (SAC's) beside the others'.
+  std::unique_ptr<WorkerThread> worker;
 
   // Per-step settings, read from the config once.
-  int64_t update_after = 0, batch_size = 0, sac_updates = 0, model_updates = 0, eval_every = 0;
+  int64_t update_after = 0, batch_size = 0, eval_every = 0;
 
-  // Counters (checkpointed).
-  int64_t agent_steps = 0, env_steps = 0, episodes = 0, evaluations = 0;
+  // Counters (checkpointed). The imitation loop counts iterations (= demonstrations); its agent steps are
+  // those of its test episodes (what the deterministic hybrid's exploration decays with).
+  int64_t agent_steps = 0, env_steps = 0, episodes = 0, evaluations = 0, iterations = 0;
   double wall_before = 0;  // seconds spent in earlier sessions of this run
   Clock::time_point session_start = Clock::now();
   int64_t next_checkpoint = 0;
@@ -92,7 +111,7 @@ struct Trainer::Impl {
   } pending;
   double ep_return = 0;
   int64_t ep_env_steps = 0, ep_agent_steps = 0, ep_fallbacks_start = 0;
-  Stats ep_mig, ep_ess, ep_saturated, critic_loss, actor_loss, alpha, entropy, dyn_loss, rew_loss;
+  Stats ep_mig, ep_ess, ep_saturated;
   double ep_act_seconds = 0, ep_update_seconds = 0, ep_eval_seconds = 0;
   Clock::time_point ep_start;
   double last_return = std::nan(""), last_eval = std::nan("");
@@ -110,39 +129,41 @@ struct Trainer::Impl {
     eval_env = std::make_unique<FrameSkip>(make_env(env_name), k);
     const int64_t n = env->observation_dim(), m = env->action_dim();
 
-    if (method->trains_policy) {
-      GaussianPolicyOptions po;
-      po.state_dim = n;
-      po.action_dim = m;
-      po.hidden = config.get_int_list("policy.hidden");
-      po.mean_activation = parse_activation(config.get_string("policy.activation"));
-      models.policy = GaussianPolicy(po);
-      SacOptions so;
-      so.gamma = config.get_double("sac.gamma");
-      so.tau = config.get_double("sac.tau");
-      so.q_lr = so.policy_lr = so.alpha_lr = config.get_double("sac.lr");
-      if (config.get_double("sac.policy_lr") > 0) so.policy_lr = config.get_double("sac.policy_lr");
-      if (config.get_double("sac.alpha_lr") > 0) so.alpha_lr = config.get_double("sac.alpha_lr");
-      so.q_hidden = config.get_int_list("sac.q_hidden");
-      so.initial_alpha = config.get_double("sac.initial_alpha");
-      so.seed = derive_seed(seed, kSacNoise);
-      sac = std::make_unique<Sac>(models.policy, n, m, so);
-    }
-    if (method->trains_models) {
-      models.dynamics = DynamicsModel(DynamicsModelOptions{
-          n, m, config.get_int("model.hidden"), parse_activation(config.get_string("model.activation"))});
-      models.reward = RewardModel(RewardModelOptions{n, m, config.get_int("model.reward_hidden")});
-      ModelLearnerOptions mo;
-      mo.lr = config.get_double("model.lr");
-      mo.reward_gamma = config.get_double("model.reward_gamma");
-      mo.reward_weight = config.get_double("model.reward_weight");
-      learner = std::make_unique<ModelLearner>(models.dynamics, models.reward, mo);
+    imitation = method->loop == kImitationLoop;
+    // Each learner adds the networks it trains to `models`, in the method's order (which fixes the order
+    // in which they draw their initial weights).
+    for (size_t i = 0; i < method->learners.size(); ++i) {
+      LearnerContext context{config, n, m, derive_seed(seed, kLearnerNoise + i), models};
+      learners.push_back({make_learner(method->learners[i].learner, context),
+                          nullptr,
+                          config.get_int(method->learners[i].updates_key),
+                          {}});
     }
     buffer = std::make_unique<ReplayBuffer>(config.get_int("train.replay_capacity"), n, m,
                                             derive_seed(seed, kReplay));
-    controller = make_controller(method->controller, models, config, /*evaluation=*/false);
+    if (imitation) {
+      // As large as D (not sized by the iterations, so that a resumed run may be given more of them).
+      demonstrations = std::make_unique<ReplayBuffer>(config.get_int("train.replay_capacity"), n, m,
+                                                      derive_seed(seed, kDemonstrationReplay));
+      // A missing or mismatched demonstrator stops the run before it writes anything.
+      const std::string expert = config.get_string("imitation.expert");
+      check(!expert.empty(), "method {} needs a demonstrator: set imitation.expert (e.g. expert:PATH)",
+            method->name);
+      make_fixed_policy(expert, *env, 0, "imitation.expert");
+    }
+    for (size_t i = 0; i < learners.size(); ++i) {
+      const std::string& data = method->learners[i].data;
+      check(data == kReplayData || (data == kDemonstrationData && demonstrations),
+            "method {}: learner {} trains on '{}', which its loop does not collect", method->name,
+            method->learners[i].learner, data);
+      learners[i].data = data == kReplayData ? buffer.get() : demonstrations.get();
+    }
+    // The imitation loop's test episodes act with the policy's mean when the method has no planner (bc).
+    controller = make_controller(method->controller, models, config,
+                                 /*evaluation=*/imitation && method->controller == "policy");
     evaluators.emplace_back("", make_controller(method->controller, models, config, /*evaluation=*/true));
-    if (config.get_bool("eval.components") && method->trains_policy && method->trains_models) {
+    if (config.get_bool("eval.components") && !method->planner_controller.empty() && models.policy &&
+        models.dynamics) {
       evaluators.emplace_back("policy", make_controller("policy", models, config, true));
       evaluators.emplace_back("planner", make_controller(method->planner_controller, models, config, true));
     }
@@ -157,16 +178,12 @@ struct Trainer::Impl {
     next_checkpoint = config.get_int("checkpoint.every");
     update_after = config.get_int("train.update_after");
     batch_size = config.get_int("train.batch_size");
-    sac_updates = config.get_int("train.sac_updates");
-    model_updates = config.get_int("train.model_updates");
     eval_every = config.get_int("eval.every");
-    if (config.get_int("train.threads") > 1 && sac && learner) worker = std::make_unique<WorkerThread>();
+    if (config.get_int("train.threads") > 1 && learners.size() > 1) worker = std::make_unique<WorkerThread>();
   }
 
   // Exploration decays with agent steps (calls to the environment's step), as in the authors' code.
-  void tell_interactions(Controller& c) const {
-    if (auto* det = dynamic_cast<DeterministicHybrid*>(&c)) det->set_interactions(agent_steps);
-  }
+  void tell_interactions(Controller& c) const { c.set_interactions(agent_steps); }
 
   at::Tensor act(Controller& c, const Eigen::VectorXd& state) {
     tell_interactions(c);
@@ -180,8 +197,8 @@ struct Trainer::Impl {
     ep_return = 0;
     ep_env_steps = ep_agent_steps = 0;
     ep_fallbacks_start = controller->diagnostics().fallbacks;
-    ep_mig = ep_ess = ep_saturated = critic_loss = actor_loss = alpha = entropy = dyn_loss = rew_loss =
-        Stats{};
+    ep_mig = ep_ess = ep_saturated = Stats{};
+    clear_losses();
     ep_act_seconds = ep_update_seconds = ep_eval_seconds = 0;
     ep_start = Clock::now();
   }
@@ -234,54 +251,66 @@ struct Trainer::Impl {
     if (res.done()) end_episode();
   }
 
-  // An agent step's learner updates. Every batch is drawn first (SAC's, then the models'), and SAC's policy
-  // samples come from its own generator; the two learners share no parameters, so running them
-  // concurrently (train.threads = 2) computes exactly what running them one after the other does.
+  // An agent step's learner updates (online loop).
   void update() {
     if (buffer->size() < update_after) return;
-    std::vector<Batch> sac_batches, model_batches;
-    for (int64_t i = 0; sac && i < sac_updates; ++i)
-      sac_batches.push_back(buffer->sample(batch_size));
-    for (int64_t i = 0; learner && i < model_updates; ++i)
-      model_batches.push_back(buffer->sample(batch_size));
-    auto update_sac = [&] {
-      for (const Batch& b : sac_batches) {
-        const SacLosses l = sac->update(b);
-        check_finite("SAC", {l.critic, l.actor, l.alpha});
-        critic_loss.add(l.critic);
-        actor_loss.add(l.actor);
-        alpha.add(l.alpha);
-        entropy.add(l.entropy);
+    train_learners();
+  }
+
+  // Every learner's updates. Every batch is drawn first (in the learners' order), and a learner's own
+  // randomness comes from its own generator; learners share no trained parameters, so running the first
+  // one concurrently with the others (train.threads = 2) computes exactly what running them one after the
+  // other does.
+  void train_learners() {
+    std::vector<std::vector<Batch>> batches(learners.size());
+    for (size_t i = 0; i < learners.size(); ++i)
+      for (int64_t u = 0; u < learners[i].updates; ++u)
+        batches[i].push_back(learners[i].data->sample(batch_size));
+    auto train = [&](size_t i) {
+      ActiveLearner& l = learners[i];
+      for (const Batch& b : batches[i]) {
+        const NamedLosses losses = l.learner->train(b);
+        check_finite(l.learner->learner_name(), losses);
+        if (l.losses.empty())
+          for (const NamedLoss& x : losses)
+            l.losses.emplace_back(x.tag, Stats{});
+        for (size_t k = 0; k < losses.size(); ++k)
+          l.losses[k].second.add(losses[k].value);
       }
     };
-    auto update_models = [&] {
-      for (const Batch& b : model_batches) {
-        const ModelLosses l = learner->update(b);
-        check_finite("model", {l.dynamics, l.reward});
-        dyn_loss.add(l.dynamics);
-        rew_loss.add(l.reward);
-      }
-    };
-    if (worker) {
-      worker->start(update_sac);
+    if (worker && learners.size() > 1) {
+      worker->start([&] { train(0); });
       try {
-        update_models();
+        for (size_t i = 1; i < learners.size(); ++i)
+          train(i);
       } catch (...) {
         worker->wait();
         throw;
       }
       worker->wait();
     } else {
-      update_sac();
-      update_models();
+      for (size_t i = 0; i < learners.size(); ++i)
+        train(i);
     }
+  }
+
+  void clear_losses() {
+    for (ActiveLearner& l : learners)
+      for (auto& tagged : l.losses)
+        tagged.second = Stats{};
+  }
+
+  void log_losses(int64_t step) {
+    for (const ActiveLearner& l : learners)
+      for (const auto& [tag, stats] : l.losses)
+        if (stats.count) log->log(step, tag, stats.mean());
   }
 
   // A diverged run stops with an error: its last checkpoint (written while every number was finite) stays,
   // and no final.pt of non-finite weights is written.
-  void check_finite(const char* what, std::initializer_list<double> losses) const {
-    for (double x : losses)
-      check(std::isfinite(x),
+  void check_finite(const char* what, const NamedLosses& losses) const {
+    for (const NamedLoss& x : losses)
+      check(std::isfinite(x.value),
             "training diverged at agent step {}: a {} loss is not finite (lower the learning rates?); {} "
             "keeps the last finite checkpoint, no {} is written",
             agent_steps, what, dir, kFinalFile);
@@ -320,12 +349,7 @@ struct Trainer::Impl {
     log_if("train/mode_insertion_gradient", ep_mig);
     log_if("train/weight_ess", ep_ess);
     log_if("train/saturated_weight", ep_saturated);
-    log_if("loss/critic", critic_loss);
-    log_if("loss/actor", actor_loss);
-    log_if("sac/alpha", alpha);
-    log_if("sac/entropy", entropy);
-    log_if("loss/dynamics", dyn_loss);
-    log_if("loss/reward", rew_loss);
+    log_losses(env_steps);
     log->log(env_steps, "time/wall_seconds", wall_time());
     log->log(env_steps, "time/agent_step_ms", 1e3 * seconds / ep_agent_steps);
     log->log(env_steps, "time/act_ms", 1e3 * ep_act_seconds / ep_agent_steps);
@@ -361,6 +385,106 @@ struct Trainer::Impl {
     ++evaluations;
   }
 
+  // Imitation loop (paper Alg. 3) -------------------------------------------------------------------
+
+  struct Recorded {
+    Eigen::VectorXd s, a, s2;
+    double r = 0;
+    bool terminated = false;
+  };
+
+  // Runs one episode of `policy` on the training environment (counted in env_steps, and in agent_steps if
+  // `agent` acts), keeping its transitions.
+  EpisodeStats record_episode(PolicySource& policy, uint64_t reset_seed, int max_steps, bool agent,
+                              std::vector<Recorded>& out, const std::function<void()>& on_reset = {}) {
+    out.clear();
+    return run_episode(
+        *env, policy, reset_seed,
+        [&](const Transition& t) {
+          out.push_back(
+              {t.observation, t.action, t.result.observation, t.result.reward, t.result.terminated});
+          env_steps += env->last_step_frames();
+          if (agent) ++agent_steps;
+        },
+        on_reset, max_steps);
+  }
+
+  // Stores a recorded episode with a' = the next step's action; after the last step a' is what `policy`
+  // does at s' (the episode was cut there), or a itself at a terminal state (masked by done).
+  void store(const std::vector<Recorded>& episode, PolicySource& policy,
+             std::initializer_list<ReplayBuffer*> into) {
+    for (size_t t = 0; t < episode.size(); ++t) {
+      const Recorded& x = episode[t];
+      const Eigen::VectorXd a2 =
+          t + 1 < episode.size() ? episode[t + 1].a : (x.terminated ? x.a : policy.act(x.s2));
+      for (ReplayBuffer* b : into)
+        b->add(x.s.data(), x.a.data(), x.r, x.s2.data(), a2.data(), x.terminated);
+    }
+  }
+
+  // One iteration: a demonstration into D_exp and D, every learner's updates, then a test episode of the
+  // method's controller into D only. The policy alone and the expert are scored from the test episode's
+  // start state (not stored), so the three returns of an iteration compare like with like.
+  void iterate() {
+    const auto t0 = Clock::now();
+    const auto i = static_cast<uint64_t>(iterations);
+    const std::string expert_spec = config.get_string("imitation.expert");
+    const int demo_steps = static_cast<int>(config.get_int("imitation.demo_steps"));
+    const int test_steps = static_cast<int>(config.get_int("imitation.test_steps"));
+    // A fresh demonstrator per iteration, seeded by the iteration, so a resumed run draws what an
+    // uninterrupted one does (only the random policy draws anything).
+    auto demonstrator =
+        make_fixed_policy(expert_spec, *env, derive_seed(seed, kDemonstrator) ^ i, "imitation.expert");
+    std::vector<Recorded> episode;
+    const EpisodeStats demo = record_episode(*demonstrator, derive_seed(seed, kDemonstrationEpisode) ^ i,
+                                             demo_steps, false, episode);
+    store(episode, *demonstrator, {demonstrations.get(), buffer.get()});
+
+    clear_losses();
+    train_learners();
+
+    const uint64_t start = derive_seed(seed, kEvalEpisode) ^ i;
+    ControllerPolicy tester(*controller, [this](Controller& c) { tell_interactions(c); });
+    const EpisodeStats test =
+        record_episode(tester, start, test_steps, true, episode, [&] { tester.reset(); });
+    store(episode, tester, {buffer.get()});
+    ++episodes;
+
+    double policy_return = test.episode_return;  // bc: the test episode is the policy alone
+    if (method->controller != "policy") {
+      auto alone = make_controller("policy", models, config, /*evaluation=*/true);
+      ControllerPolicy p(*alone);
+      policy_return = run_episode(*eval_env, p, start, {}, {}, test_steps).episode_return;
+    }
+    double expert_return = std::nan("");
+    if (config.get_bool("imitation.expert_episode")) {
+      auto expert = make_fixed_policy(expert_spec, *eval_env, derive_seed(seed, kDemonstrator) ^ ~i,
+                                      "imitation.expert");
+      expert_return = run_episode(*eval_env, *expert, start, {}, {}, test_steps).episode_return;
+    }
+
+    ++iterations;
+    last_return = last_eval = test.episode_return;
+    const int64_t step = iterations;
+    log->log(step, "imitation/demonstrations", static_cast<double>(iterations));
+    log->log(step, "imitation/demonstration_return", demo.episode_return);
+    log->log(step, "imitation/test_return", test.episode_return);
+    log->log(step, "imitation/test_length", static_cast<double>(test.length));
+    log->log(step, "imitation/policy_return", policy_return);
+    if (std::isfinite(expert_return)) log->log(step, "imitation/expert_return", expert_return);
+    // Not train/agent_steps: that tag counts an online run's progress (the sweep engine reads it).
+    log->log(step, "imitation/agent_steps", static_cast<double>(agent_steps));
+    log->log(step, "imitation/env_steps", static_cast<double>(env_steps));
+    log_losses(step);
+    log->log(step, "time/wall_seconds", wall_time());
+    log->log(step, "time/iteration_seconds", seconds_since(t0));
+    // Every iteration ends at an episode boundary: a checkpoint each time.
+    save_checkpoint();
+  }
+
+  // The step axis of the log: environment steps (online loop) or iterations (imitation loop).
+  int64_t log_step() const { return imitation ? iterations : env_steps; }
+
   std::string path(const char* file) const { return (fs::path(dir) / file).string(); }
 
   // What a tool needs to run the trained networks: config, counters, policy architecture and weights.
@@ -375,6 +499,7 @@ struct Trainer::Impl {
     w.add_int("evaluations", evaluations);
     w.add_int("next_checkpoint", next_checkpoint);
     w.add_tensor("wall_seconds", torch::tensor({wall_time()}, torch::kFloat64));
+    if (imitation) w.add_int("iterations", iterations);
     if (models.policy) {
       // Enough to rebuild the policy without the run's config (hlt_rollout --policy checkpoint:PATH).
       w.add_tensor("policy_hidden", torch::tensor(config.get_int_list("policy.hidden"), torch::kInt64));
@@ -397,9 +522,10 @@ struct Trainer::Impl {
     CheckpointWriter w;
     add_networks(w);
     w.add_tensor("torch_rng", at::detail::getDefaultCPUGenerator().get_state());
-    if (sac) sac->save_training_state(w);
-    if (learner) learner->save_training_state(w);
-    buffer->save(w.archive("replay"));
+    for (const ActiveLearner& l : learners)
+      l.learner->save_training_state(w);
+    buffer->save(w.archive(kReplayData));
+    if (demonstrations) demonstrations->save(w.archive(kDemonstrationData));
     w.save(path(kCheckpointFile));
   }
 
@@ -422,7 +548,8 @@ struct Trainer::Impl {
     // Everything but the step budget must match the run that wrote the checkpoint.
     Config stored = make_train_config();
     stored.merge_yaml(r.get_string("config"), r.path());
-    stored.set("train.agent_steps", std::to_string(config.get_int("train.agent_steps")));
+    for (const char* budget : {"train.agent_steps", "imitation.iterations"})
+      stored.set(budget, std::to_string(config.get_int(budget)));
     check(stored.to_yaml() == config.to_yaml(), "{}: {} does not match the checkpoint's config", dir,
           kConfigFile);
     agent_steps = r.get_int("agent_steps");
@@ -438,13 +565,20 @@ struct Trainer::Impl {
       r.load_module("dynamics", *models.dynamics);
       r.load_module("reward", *models.reward);
     }
-    if (sac) sac->load_training_state(r);
-    if (learner) learner->load_training_state(r);
-    buffer->load(r.archive("replay"));
+    for (ActiveLearner& l : learners)
+      l.learner->load_training_state(r);
+    buffer->load(r.archive(kReplayData));
+    if (demonstrations) demonstrations->load(r.archive(kDemonstrationData));
+    if (imitation) iterations = r.get_int("iterations");
   }
 };
 
 Trainer::Trainer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+
+std::string Trainer::budget_key(const Config& config) {
+  return find_method(config.get_string("method")).loop == kImitationLoop ? "imitation.iterations"
+                                                                         : "train.agent_steps";
+}
 Trainer::~Trainer() = default;
 
 const Config& Trainer::config() const {
@@ -493,16 +627,17 @@ std::unique_ptr<Trainer> Trainer::resume(const std::string& run_dir, std::option
   impl->dir = run_dir;
   impl->config = make_train_config();
   impl->config.load_file(cfg.string());
-  if (agent_steps) impl->config.set("train.agent_steps", std::to_string(*agent_steps), "--steps");
+  if (agent_steps) impl->config.set(budget_key(impl->config), std::to_string(*agent_steps), "--steps");
   impl->build();
   const std::string log_path = impl->path(kLogFile);
   if (fs::exists(impl->path(kCheckpointFile))) {
     impl->load_checkpoint();
-    check(!agent_steps || *agent_steps >= impl->agent_steps,
-          "--resume {} --steps {}: the run has trained {} agent steps already; a smaller budget would "
-          "discard them (copy the run and shorten the copy's log instead)",
-          run_dir, agent_steps.value_or(0), impl->agent_steps);
-    if (fs::exists(log_path)) ScalarLogger::truncate_after(log_path, impl->env_steps);
+    const int64_t done = impl->imitation ? impl->iterations : impl->agent_steps;
+    check(!agent_steps || *agent_steps >= done,
+          "--resume {} --steps {}: the run has trained {} {} already; a smaller budget would discard them "
+          "(copy the run and shorten the copy's log instead)",
+          run_dir, agent_steps.value_or(0), done, impl->imitation ? "iterations" : "agent steps");
+    if (fs::exists(log_path)) ScalarLogger::truncate_after(log_path, impl->log_step());
   } else {
     // Only a run killed before its first checkpoint may start over: anything else lost its checkpoint.
     check(!fs::exists(impl->path(kFinalFile)),
@@ -537,10 +672,27 @@ std::unique_ptr<Trainer> Trainer::resume(const std::string& run_dir, std::option
 void Trainer::run(bool progress) {
   Impl& s = *impl_;
   const int64_t total = s.config.get_int("train.agent_steps");
-  if (s.agent_steps >= total) {
+  if (!s.imitation && s.agent_steps >= total) {
     fmt::print(stderr, "{}: already trained for {} agent steps\n", s.dir, s.agent_steps);
     // Killed while final.pt was written: the checkpoint holds the same networks.
     if (!fs::exists(s.path(kFinalFile))) s.save_final();
+    return;
+  }
+  if (s.imitation) {
+    const int64_t iterations = s.config.get_int("imitation.iterations");
+    if (s.iterations >= iterations) {
+      fmt::print(stderr, "{}: already ran {} iterations\n", s.dir, s.iterations);
+      if (!fs::exists(s.path(kFinalFile))) s.save_final();
+      return;
+    }
+    ProgressBar bar(s.iterations, iterations, progress);
+    while (s.iterations < iterations) {
+      s.iterate();
+      bar.set("return", s.last_return);
+      bar.update(s.iterations);
+    }
+    bar.finish();
+    s.save_final();
     return;
   }
   ProgressBar bar(s.agent_steps, total, progress);

@@ -22,7 +22,7 @@
 #include <opencv2/videoio.hpp>
 
 #include "agents/demonstrations.h"
-#include "agents/expert_policy.h"
+#include "agents/policy_spec.h"
 #include "agents/saved_policy.h"
 #include "envs/env.h"
 #include "envs/registry.h"
@@ -51,15 +51,7 @@ std::unique_ptr<PolicySource> make_policy(const std::string& spec, std::optional
           env.name());
     return std::move(saved->source);
   }
-  if (spec.rfind(ExpertPolicy::kPrefix, 0) == 0) {
-    auto expert = std::make_unique<ExpertPolicy>(spec.substr(std::string(ExpertPolicy::kPrefix).size()));
-    check(expert->observation_dim() == env.observation_dim() && expert->action_dim() == env.action_dim(),
-          "--policy {}: the expert maps {} observations to {} actions, {} has {} and {}", spec,
-          expert->observation_dim(), expert->action_dim(), env.name(), env.observation_dim(),
-          env.action_dim());
-    return expert;
-  }
-  return make_simple_policy(spec, env.action_dim(), seed);
+  return make_fixed_policy(spec, env, seed, "--policy");
 }
 
 std::string extension(const std::string& path) {

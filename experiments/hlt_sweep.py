@@ -225,8 +225,14 @@ def lock_holder(run):
         os.close(fd)
 
 
-def logged_agent_steps(run):
-    """The last train/agent_steps value of the run's scalars.csv (0 if none), read from the file's end."""
+# The tags that count a run's progress in the unit of its budget (--steps): agent steps for the online
+# methods, iterations (one demonstration each) for the imitation methods.
+PROGRESS_TAGS = (b"train/agent_steps", b"imitation/demonstrations")
+
+
+def logged_progress(run):
+    """(tag, value): the last progress row of the run's scalars.csv, read from the file's end ((None, 0) if
+    none)."""
     path = os.path.join(run.dir, "scalars.csv")
     try:
         with open(path, "rb") as f:
@@ -241,16 +247,29 @@ def logged_agent_steps(run):
                     lines = lines[1:]  # maybe a partial line
                 for line in reversed(lines):
                     fields = line.split(b",")
-                    if len(fields) == 4 and fields[2] == b"train/agent_steps":
+                    if len(fields) == 4 and fields[2] in PROGRESS_TAGS:
                         try:
-                            return int(float(fields[3]))
+                            return fields[2].decode(), int(float(fields[3]))
                         except ValueError:
                             pass
                 if start == 0:
-                    return 0
+                    return None, 0
                 chunk *= 4
     except OSError:
-        return 0
+        return None, 0
+
+
+def logged_agent_steps(run):
+    """The run's progress in its budget's unit (agent steps, or iterations for imitation methods)."""
+    return logged_progress(run)[1]
+
+
+def configured_budget(run, config):
+    """The budget in the run's config.yaml, in the unit its log counts progress in."""
+    tag, _ = logged_progress(run)
+    if tag == "imitation/demonstrations":
+        return (config.get("imitation") or {}).get("iterations")
+    return (config.get("train") or {}).get("agent_steps")
 
 
 def run_config(run):
@@ -282,7 +301,7 @@ def finished(run):
         return False
     if final >= config_time:
         return True
-    budget = ((run_config(run) or {}).get("train") or {}).get("agent_steps")
+    budget = configured_budget(run, run_config(run) or {})
     return isinstance(budget, int) and logged_agent_steps(run) >= budget
 
 
@@ -297,7 +316,7 @@ def run_state(run):
         return "running", "pid %d" % pid if pid else ""
     if finished(run):
         config = run_config(run) or {}
-        trained = (config.get("train") or {}).get("agent_steps")
+        trained = configured_budget(run, config)
         if isinstance(trained, int) and trained < run.steps:
             return "partial", "finished at %d agent steps; run resumes it to %d" % (trained, run.steps)
         return "done", ""

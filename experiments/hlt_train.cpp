@@ -2,6 +2,7 @@
 //
 //   hlt_train --env cartpole_swingup --method hybrid-stochastic --seed 0 --steps 10000 --out runs/x
 //             [--config FILE] [key=value ...]
+//   hlt_train --env ant --method hybrid-imitation --seed 0 --steps 10 --out runs/y   (10 demonstrations)
 //   hlt_train --resume runs/x [--steps N]
 //
 // Settings are resolved in order: declared defaults, experiments/configs/<env>.yaml, the method's overlay
@@ -45,6 +46,18 @@ std::optional<std::string> key_in_file(const std::string& path, const char* key)
   return std::nullopt;
 }
 
+// The shipped configs name expert files relative to the repository (agents/experts/...): found from any
+// working directory, recorded in the run's config as the absolute path that was used.
+void resolve_expert_path(Config& config) {
+  const std::string spec = config.get_string("imitation.expert");
+  const std::string prefix = "expert:";
+  if (spec.rfind(prefix, 0) != 0) return;
+  const fs::path file = spec.substr(prefix.size());
+  const fs::path in_repository = fs::path(HLT_CONFIG_DIR).parent_path().parent_path() / file;
+  if (file.is_relative() && !fs::exists(file) && fs::exists(in_repository))
+    config.set("imitation.expert", prefix + in_repository.lexically_normal().string(), "repository path");
+}
+
 void print_summary(const Trainer& trainer) {
   const Trainer::Summary s = trainer.summary();
   fmt::print(
@@ -66,7 +79,9 @@ int run(int argc, char** argv) {
       fmt::format("{} (default {})", fmt::join(env_names(), " | "), make_train_config().get_string("env")));
   app.add_option("--method", method, fmt::format("{}", fmt::join(method_names(), " | ")));
   app.add_option("--seed", seed, "run seed");
-  app.add_option("--steps", steps, "agent steps to train for (with --resume: the new total)");
+  app.add_option("--steps", steps,
+                 "agent steps to train for, or iterations for an imitation method (with --resume: the new "
+                 "total)");
   app.add_option("--out", out, "run directory (default runs/<env>/<method>/seed<seed>)");
   app.add_option("--config", config_file, "YAML config file applied after the environment's defaults");
   app.add_option("--resume", resume, "continue the run in this directory from its last checkpoint");
@@ -112,17 +127,21 @@ int run(int argc, char** argv) {
   if (!env.empty()) config.set("env", env, "--env");
   if (!method.empty()) config.set("method", method, "--method");
   if (seed) config.set("seed", std::to_string(*seed), "--seed");
-  if (steps) config.set("train.agent_steps", std::to_string(*steps), "--steps");
+  if (steps) config.set(Trainer::budget_key(config), std::to_string(*steps), "--steps");
   for (const auto& o : overrides)
     config.apply_override(o);
+  resolve_expert_path(config);
   if (out.empty()) {
     out = fmt::format("runs/{}/{}/seed{}", config.get_string("env"), config.get_string("method"),
                       config.get_int("seed"));
   }
   auto trainer = Trainer::create(config, out);
-  fmt::print("training {} on {} (seed {}, {} agent steps, frame skip {}) into {}\n",
-             config.get_string("method"), config.get_string("env"), config.get_int("seed"),
-             config.get_int("train.agent_steps"), config.get_int("train.frame_skip"), out);
+  const bool imitation = find_method(config.get_string("method")).loop == kImitationLoop;
+  fmt::print("training {} on {} (seed {}, {}, frame skip {}) into {}\n", config.get_string("method"),
+             config.get_string("env"), config.get_int("seed"),
+             imitation ? fmt::format("{} iterations", config.get_int("imitation.iterations"))
+                       : fmt::format("{} agent steps", config.get_int("train.agent_steps")),
+             config.get_int("train.frame_skip"), out);
   fmt::print("blas: {}\n", blas_kernel().summary());
   trainer->run(progress);
   print_summary(*trainer);

@@ -18,6 +18,7 @@
 #include <sstream>
 
 #include "envs/registry.h"
+#include "experiments/cli_support.h"
 #include "hlt/util/files.h"
 #include "hlt/util/scalar_logger.h"
 
@@ -26,30 +27,10 @@ extern char** environ;
 namespace hlt {
 namespace {
 namespace fs = std::filesystem;
-
-struct Result {
-  int code = -1;
-  std::string output;  // stdout and stderr
-};
-
-Result run(const std::string& command) {
-  Result r;
-  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
-  if (!pipe) return r;
-  char buf[4096];
-  while (size_t n = std::fread(buf, 1, sizeof buf, pipe))
-    r.output.append(buf, n);
-  const int status = ::pclose(pipe);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
-
-std::string fresh_dir(const std::string& name) {
-  const fs::path p = fs::temp_directory_path() / "hlt_cli_test" / name;
-  fs::remove_all(p);
-  fs::create_directories(p.parent_path());
-  return p.string();
-}
+using test::comparable_rows;
+using test::fresh_dir;
+using test::Result;
+using test::run;
 
 const std::string kTrain = HLT_TRAIN_BIN;
 // A small, fast configuration: pendulum episodes are 50 agent steps with frame skip 4.
@@ -255,16 +236,6 @@ TEST(TrainCli, FullDiskStopsTheRunWithAMessageAndKeepsWhatWasWritten) {
   EXPECT_NE(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("(disk full?)"), std::string::npos) << r.output;
   ::system(("umount " + mount.string()).c_str());
-}
-
-// Rows of a log without wall-clock values: what must be identical between two runs of the same seed.
-std::vector<std::string> comparable_rows(const std::string& path) {
-  std::vector<std::string> rows;
-  for (const auto& r : ScalarLogger::read(path)) {
-    if (r.tag.rfind("time/", 0) == 0) continue;
-    rows.push_back(fmt::format("{},{},{:.17g}", r.step, r.tag, r.value));
-  }
-  return rows;
 }
 
 TEST(TrainCli, ParallelUpdatesGiveTheSameNumbers) {

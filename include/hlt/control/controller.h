@@ -37,6 +37,9 @@ class Controller {
   virtual std::string name() const = 0;
   // Called at the start of every episode (clears warm starts).
   virtual void reset() {}
+  // How many agent steps the learning run has taken (environment interactions), for controllers whose
+  // exploration decays with experience (the deterministic hybrid's 0.999^t); others ignore it.
+  virtual void set_interactions(int64_t /*t*/) {}
   // The action for state [n] (any float dtype; computed in the models' dtype), returned as [m] in [-1, 1].
   at::Tensor act(const at::Tensor& state);
   const ControllerDiagnostics& diagnostics() const { return diagnostics_; }

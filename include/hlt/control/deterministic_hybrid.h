@@ -84,7 +84,7 @@ class DeterministicHybrid : public Controller {
   std::string name() const override { return name_; }
   // Number of environment interactions (agent steps) so far, which drives the exploration decay; the
   // training loop sets it.
-  void set_interactions(int64_t t) { interactions_ = t; }
+  void set_interactions(int64_t t) override { interactions_ = t; }
   void set_explore(bool explore) { options_.explore = explore; }
   const AdjointTrace& trace() const { return trace_; }
   // Runs the forward rollout, Jacobians and adjoint sweep for `state` without acting.

@@ -1,0 +1,119 @@
+// The learner registry, and SAC, the model learner and behaviour cloning seen as Learners: their
+// factories (which read the config) and the conversion of their loss structs to log tags.
+#include <functional>
+#include <map>
+
+#include "agents/behaviour_cloning.h"
+#include "agents/learner.h"
+#include "agents/model_learner.h"
+#include "agents/sac.h"
+#include "hlt/util/error.h"
+
+namespace hlt {
+
+#define HLT_LEARNER(name, factory) std::unique_ptr<Learner> factory(LearnerContext&);
+#include "agents/learner_list.inc"
+#undef HLT_LEARNER
+
+namespace {
+
+using Factory = std::function<std::unique_ptr<Learner>(LearnerContext&)>;
+
+const std::map<std::string, Factory>& learners() {
+  static const std::map<std::string, Factory> table = {
+#define HLT_LEARNER(name, factory) {name, factory},
+#include "agents/learner_list.inc"
+#undef HLT_LEARNER
+  };
+  return table;
+}
+
+}  // namespace
+
+std::unique_ptr<Learner> make_learner(const std::string& name, LearnerContext& context) {
+  auto it = learners().find(name);
+  check(it != learners().end(), "unknown learner '{}'; known learners: {}", name,
+        fmt::join(learner_names(), ", "));
+  return it->second(context);
+}
+
+std::vector<std::string> learner_names() {
+  std::vector<std::string> names;
+  for (const auto& kv : learners())
+    names.push_back(kv.first);
+  return names;
+}
+
+GaussianPolicy& config_policy(LearnerContext& context) {
+  if (!context.models.policy) {
+    const Config& c = context.config;
+    GaussianPolicyOptions po;
+    po.state_dim = context.state_dim;
+    po.action_dim = context.action_dim;
+    po.hidden = c.get_int_list("policy.hidden");
+    po.mean_activation = parse_activation(c.get_string("policy.activation"));
+    context.models.policy = GaussianPolicy(po);
+  }
+  return context.models.policy;
+}
+
+// SAC ------------------------------------------------------------------------------------------------
+
+NamedLosses Sac::train(const Batch& batch) {
+  const SacLosses l = update(batch);
+  return {
+      {"loss/critic", l.critic}, {"loss/actor", l.actor}, {"sac/alpha", l.alpha}, {"sac/entropy", l.entropy}};
+}
+
+std::unique_ptr<Learner> make_sac_learner(LearnerContext& context) {
+  const Config& c = context.config;
+  // The policy first, then the critics: the order in which they draw their initial weights.
+  GaussianPolicy policy = config_policy(context);
+  SacOptions so;
+  so.gamma = c.get_double("sac.gamma");
+  so.tau = c.get_double("sac.tau");
+  so.q_lr = so.policy_lr = so.alpha_lr = c.get_double("sac.lr");
+  if (c.get_double("sac.policy_lr") > 0) so.policy_lr = c.get_double("sac.policy_lr");
+  if (c.get_double("sac.alpha_lr") > 0) so.alpha_lr = c.get_double("sac.alpha_lr");
+  so.q_hidden = c.get_int_list("sac.q_hidden");
+  so.initial_alpha = c.get_double("sac.initial_alpha");
+  so.seed = context.seed;
+  return std::make_unique<Sac>(policy, context.state_dim, context.action_dim, so);
+}
+
+// Model learner ----------------------------------------------------------------------------------------
+
+NamedLosses ModelLearner::train(const Batch& batch) {
+  const ModelLosses l = update(batch);
+  return {{"loss/dynamics", l.dynamics}, {"loss/reward", l.reward}};
+}
+
+std::unique_ptr<Learner> make_model_learner(LearnerContext& context) {
+  const Config& c = context.config;
+  LearnedModels& m = context.models;
+  const int64_t n = context.state_dim, a = context.action_dim;
+  if (!m.dynamics) {
+    m.dynamics = DynamicsModel(DynamicsModelOptions{n, a, c.get_int("model.hidden"),
+                                                    parse_activation(c.get_string("model.activation"))});
+  }
+  if (!m.reward) m.reward = RewardModel(RewardModelOptions{n, a, c.get_int("model.reward_hidden")});
+  ModelLearnerOptions mo;
+  mo.lr = c.get_double("model.lr");
+  mo.reward_gamma = c.get_double("model.reward_gamma");
+  mo.reward_weight = c.get_double("model.reward_weight");
+  return std::make_unique<ModelLearner>(m.dynamics, m.reward, mo);
+}
+
+// Behaviour cloning --------------------------------------------------------------------------------------
+
+NamedLosses BehaviourCloning::train(const Batch& batch) {
+  return {{"loss/bc", update(batch.states, batch.actions)}};
+}
+
+std::unique_ptr<Learner> make_bc_learner(LearnerContext& context) {
+  BehaviourCloningOptions o;
+  o.lr = context.config.get_double("bc.lr");
+  return std::make_unique<BehaviourCloning>(config_policy(context), o);
+}
+
+}  // namespace hlt
