@@ -308,7 +308,9 @@ int run_tool(int argc, char** argv) {
   app.add_option("--episodes", o.episodes, "Number of episodes")->capture_default_str();
   app.add_option("--seed", o.seed, "Seed of the first reset (and of the random policy)")
       ->capture_default_str();
-  app.add_option("--frame-skip", o.frame_skip, "Repeat each action K simulator steps")->capture_default_str();
+  app.add_option("--frame-skip", o.frame_skip, "Repeat each action K simulator steps")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   app.add_option("--csv", o.csv,
                  "Write every step (observation, action, reward, done, truncated) to this CSV");
   app.add_option("--video", o.video, "Write the recorded episodes as a video (.mp4 or .avi)");
