@@ -323,7 +323,7 @@ int run_tool(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--width", o.width, "Frame width in pixels")->capture_default_str();
   app.add_option("--height", o.height, "Frame height in pixels")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> code = hlt::parse_command_line(app, argc, argv)) return *code;
   hlt::check_finite_flags(app);
   if (list) {
     for (const auto& n : hlt::env_names())

@@ -81,7 +81,7 @@ int run(int argc, char** argv) {
   app.add_flag("--no-progress", no_progress,
                "no progress bar (it is also off when stderr is not a terminal)");
   app.add_option("overrides", overrides, "key=value config overrides, e.g. planner.samples=60");
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> code = hlt::parse_command_line(app, argc, argv)) return *code;
   check_finite_flags(app);
 
   if (list) {

@@ -70,7 +70,7 @@ int main(int argc, char** argv) {
     benchmark::AddCustomContext("cpu", cpu_model());
     benchmark::AddCustomContext("blas", hlt::blas_kernel().summary());
     benchmark::Initialize(&argc, argv);
-    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 2;  // bad input, as in every tool
     // A filter that matches nothing (or does not compile) runs nothing: that is an error, not a report.
     const size_t ran = benchmark::RunSpecifiedBenchmarks();
     benchmark::Shutdown();
