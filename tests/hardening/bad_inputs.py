@@ -12,7 +12,8 @@ limit and classifies what happened:
            stay untouched changed (files are hashed before and after)
   unclear  a non-zero exit whose message lacks a word the case requires (the key, file or flag at fault),
            or whose exit code is not the documented one (2 for bad input, 1 for a sweep with failed runs)
-  hang     still running at the time limit
+  hang     a case that must succeed still running at the time limit (one that must fail and is still
+           running has taken the bad input: silent)
   refused  a valid request that fails (a case that must succeed exits non-zero)
   ok       none of the above
   missing  the executable is not in the build (not counted)
@@ -157,6 +158,8 @@ def verdict(r, must_fail=True, words=(), protect_before=None, protect_after=None
     if r.timed_out:
         if changed:
             return "silent", "changed: %s; still running after %.0f s" % (", ".join(changed), r.seconds)
+        if must_fail:  # bad input is refused up front; a tool still busy has taken it (trains, loops)
+            return "silent", "took the input: still running after %.0f s" % r.seconds
         return "hang", "still running after %.0f s" % r.seconds
     if changed:
         return "silent", "changed: " + ", ".join(changed)
