@@ -91,7 +91,7 @@ class Catalogue:
             raise Missing(path)
         return [path]
 
-    def run(self, name, args, timeout=30, mem_limit=None, cwd=None):
+    def run(self, name, args, timeout=60, mem_limit=None, cwd=None):
         argv = self.tool(name) + [str(a) for a in args]
         if self.sanitized:
             timeout *= 3
@@ -112,6 +112,9 @@ class Catalogue:
             os.killpg(proc.pid, signal.SIGKILL)
             out, _ = proc.communicate()
             timed_out = True
+        except BaseException:  # interrupted: the case's process group goes with us
+            os.killpg(proc.pid, signal.SIGKILL)
+            raise
         return Result(proc.returncode, out.decode(errors="replace"), timed_out, time.monotonic() - start)
 
     def fresh(self, name):
@@ -199,7 +202,7 @@ def case(cid, tool, row):
     return register
 
 
-def fails(tool, args, words, protect=(), timeout=30, mem_limit=None, setup=None, code=2):
+def fails(tool, args, words, protect=(), timeout=60, mem_limit=None, setup=None, code=2):
     """A case that must fail with a message holding `words` and leave `protect` untouched."""
     def fn(cat):
         if setup:
@@ -828,6 +831,8 @@ def main():
     ap.add_argument("--verbose", action="store_true", help="print the output of every case that is not ok")
     ap.add_argument("--keep", action="store_true", help="keep the work directory")
     args = ap.parse_args()
+    # SIGTERM (ctest's timeout, kill) unwinds like Ctrl-C: running cases are killed, the work directory removed.
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     build = os.path.abspath(args.build)
     work = tempfile.mkdtemp(prefix="hlt_bad_inputs_")
     cat = Catalogue(build, os.path.abspath(args.source), work, can_mount(work))
