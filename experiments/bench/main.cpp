@@ -51,7 +51,7 @@ void check_flags(int argc, char** argv) {
     hlt::check(std::isfinite(x) && (warmup ? x >= 0 : x > 0), "--{} must be a finite number {} 0, got '{}'",
                name, warmup ? ">=" : ">", v);
   }
-  // Google Benchmark finds an unwritable --benchmark_out only after the runs, and exits 1 from inside.
+  // Google Benchmark exits 1 from inside on an unwritable --benchmark_out: refused here as bad input.
   if (const char* out = flag_value(argc, argv, "benchmark_out")) {
     std::ofstream probe(out, std::ios::app);
     hlt::check(probe.is_open(), "--benchmark_out: cannot write {}: {}", out, std::strerror(errno));
