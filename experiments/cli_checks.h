@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <optional>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -21,6 +22,18 @@ inline void check_finite_flags(const CLI::App& app) {
       check(std::isfinite(x), "{} must be a finite number, got '{}'", opt->get_name(), v);
     }
   }
+}
+
+// Parses the command line; returns the exit code when the tool must stop now. CLI11 exits with codes of its
+// own (100 and up, one per kind of error), which would break the contract every tool documents (2: bad
+// input); --help still exits 0.
+inline std::optional<int> parse_command_line(CLI::App& app, int argc, char** argv) {
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  return std::nullopt;
 }
 
 }  // namespace hlt

@@ -6,7 +6,7 @@
 //   hlt_calibrate --render-demo demo/ ...   # write synthetic views of a known camera first, to try it out
 #include <algorithm>
 #include <cstdio>
-#include <exception>
+#include <optional>
 #include <string>
 
 #include <fmt/format.h>
@@ -68,44 +68,40 @@ int run_tool(int argc, char** argv) {
   app.add_flag("--zero-tangent", zero_tangent, "assume no tangential distortion (p1 = p2 = 0)");
   app.add_flag("--rational", rational, "8-coefficient rational model (wide-angle lenses)");
   app.add_option("--render-demo", demo, "write synthetic views of a known camera into this folder and exit");
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> code = hlt::parse_command_line(app, argc, argv)) return *code;
   hlt::check_finite_flags(app);
-  try {
-    const cv::Size inner(cols, rows);
-    if (!demo.empty()) {
-      render_demo(demo, inner, square);
-      return 0;
-    }
-    hlt::check(!images.empty(), "--images is required (or --render-demo)");
-    hlt::check(!out.empty(), "--out is required");
-    hlt::CheckerboardCalibrator calibrator(inner, square);
-    for (const std::string& path : hlt::FrameSource::image_files(images)) {
-      const cv::Mat img = cv::imread(path, cv::IMREAD_COLOR);
-      hlt::check(!img.empty(), "cannot read image {}", path);
-      const bool found = calibrator.add_image(img, path);
-      std::printf("%-50s %s\n", path.c_str(), found ? "board found" : "no board: skipped");
-    }
-    int flags = 0;
-    if (!k3 && !rational) flags |= cv::CALIB_FIX_K3;
-    if (zero_tangent) flags |= cv::CALIB_ZERO_TANGENT_DIST;
-    if (rational) flags |= cv::CALIB_RATIONAL_MODEL;
-    const hlt::CalibrationResult r = calibrator.calibrate(flags);
-    std::printf("\n%zu views used, %zu rejected\n", r.used.size(), r.rejected.size());
-    for (size_t i = 0; i < r.used.size(); ++i)
-      std::printf("  %-50s reprojection RMS %.3f px\n", r.used[i].c_str(), r.per_view_rms[i]);
-    const hlt::CameraModel& c = r.camera;
-    std::printf("\nRMS reprojection error: %.4f px\n", r.rms);
-    std::printf("fx %.3f  fy %.3f  cx %.3f  cy %.3f\n", c.fx(), c.fy(), c.cx(), c.cy());
-    std::string d;
-    for (double v : c.distortion())
-      d += fmt::format(" {:.5f}", v);
-    std::printf("distortion:%s\n", d.c_str());
-    c.save(out, r.rms);
-    std::printf("wrote %s\n", out.c_str());
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "hlt_calibrate: %s\n", e.what());
-    return 1;
+  // Errors go to guarded_main: exit 2 for bad input, 3 out of memory, one line naming the tool once.
+  const cv::Size inner(cols, rows);
+  if (!demo.empty()) {
+    render_demo(demo, inner, square);
+    return 0;
   }
+  hlt::check(!images.empty(), "--images is required (or --render-demo)");
+  hlt::check(!out.empty(), "--out is required");
+  hlt::CheckerboardCalibrator calibrator(inner, square);
+  for (const std::string& path : hlt::FrameSource::image_files(images)) {
+    const cv::Mat img = cv::imread(path, cv::IMREAD_COLOR);
+    hlt::check(!img.empty(), "cannot read image {}", path);
+    const bool found = calibrator.add_image(img, path);
+    std::printf("%-50s %s\n", path.c_str(), found ? "board found" : "no board: skipped");
+  }
+  int flags = 0;
+  if (!k3 && !rational) flags |= cv::CALIB_FIX_K3;
+  if (zero_tangent) flags |= cv::CALIB_ZERO_TANGENT_DIST;
+  if (rational) flags |= cv::CALIB_RATIONAL_MODEL;
+  const hlt::CalibrationResult r = calibrator.calibrate(flags);
+  std::printf("\n%zu views used, %zu rejected\n", r.used.size(), r.rejected.size());
+  for (size_t i = 0; i < r.used.size(); ++i)
+    std::printf("  %-50s reprojection RMS %.3f px\n", r.used[i].c_str(), r.per_view_rms[i]);
+  const hlt::CameraModel& c = r.camera;
+  std::printf("\nRMS reprojection error: %.4f px\n", r.rms);
+  std::printf("fx %.3f  fy %.3f  cx %.3f  cy %.3f\n", c.fx(), c.fy(), c.cx(), c.cy());
+  std::string d;
+  for (double v : c.distortion())
+    d += fmt::format(" {:.5f}", v);
+  std::printf("distortion:%s\n", d.c_str());
+  c.save(out, r.rms);
+  std::printf("wrote %s\n", out.c_str());
   return 0;
 }
 

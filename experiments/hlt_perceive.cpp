@@ -15,6 +15,7 @@
 #include <fstream>
 #include <iterator>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -148,120 +149,111 @@ int run_tool(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   app.add_flag("--quiet", quiet, "no progress line every 25 frames");
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> code = hlt::parse_command_line(app, argc, argv)) return *code;
   hlt::check_finite_flags(app);
-
-  try {
-    o.detector.refine_corners = !no_refine;
-    o.colour_fallback = !no_colour;
-    if (!hsv_low.empty()) o.colour.hsv_low = parse_hsv(hsv_low, "--hsv-low");
-    if (!hsv_high.empty()) o.colour.hsv_high = parse_hsv(hsv_high, "--hsv-high");
-    const hlt::TagConfig tags = hlt::TagConfig::load(tags_path);
-    const bool synthetic = input.rfind("synthetic", 0) == 0;
-    hlt::CameraModel camera;
-    if (!calibration.empty()) {
-      camera = hlt::CameraModel::load(calibration);
-    } else {
-      hlt::check(synthetic, "--calibration is required for real input (hlt_calibrate writes one)");
-    }
-    if (synthetic && !camera.has_extrinsics())
-      camera.set_world_from_camera(hlt::TabletopScene::default_camera_pose());
-
-    std::unique_ptr<hlt::FrameSource> source;
-    std::unique_ptr<SyntheticEpisode> episode;
-    std::string description;
-    if (synthetic) {
-      int n = 60;
-      if (input.size() > 9) {
-        hlt::check(input[9] == ':', "synthetic input is 'synthetic' or 'synthetic:N', got '{}'", input);
-        try {
-          n = std::stoi(input.substr(10));
-        } catch (const std::exception&) {
-          n = -1;
-        }
-        hlt::check(n > 0, "synthetic:N needs a positive frame count, got '{}'", input);
-      }
-      episode = std::make_unique<SyntheticEpisode>(camera, tags, n, fps);
-      description = fmt::format("{} synthetic frames", n);
-    } else {
-      source = std::make_unique<hlt::FrameSource>(input, fps, camera.size());
-      description = source->description();
-    }
-    hlt::PerceptionPipeline pipeline(camera, tags, o);
-
-    if (detections_csv.empty()) {
-      const std::string stem =
-          csv.size() > 4 && csv.substr(csv.size() - 4) == ".csv" ? csv.substr(0, csv.size() - 4) : csv;
-      detections_csv = stem + "_detections.csv";
-    }
-    // Rows are flushed as they are written, so a live run stopped any way keeps what it saw. The files are
-    // opened at the first frame read, so an input that yields nothing leaves existing CSVs alone, and every
-    // write is checked: a full disk stops the run instead of dropping rows.
-    std::ofstream states, detections;
-    auto open_csvs = [&] {
-      states.open(csv);
-      detections.open(detections_csv);
-      hlt::check(states.good(), "cannot write {}", csv);
-      hlt::check(detections.good(), "cannot write {}", detections_csv);
-      states << hlt::PerceptionPipeline::states_csv_header() << "\n";
-      detections << hlt::PerceptionPipeline::detections_csv_header() << "\n";
-    };
-    if (!save_frames.empty()) hlt::ensure_writable_directory(save_frames);
-    cv::VideoWriter writer;
-
-    std::signal(SIGINT, on_signal);
-    std::signal(SIGTERM, on_signal);
-    std::fprintf(stderr, "hlt_perceive: %s, camera %dx%d, %zu configured tags\n", description.c_str(),
-                 camera.width(), camera.height(), tags.tags().size());
-    cv::Mat frame;
-    double t = 0, sum_ms = 0;
-    int64_t n = 0, valid = 0;
-    std::vector<double> ms;
-    while (!g_stop && (max_frames == 0 || n < max_frames)) {
-      const bool got = episode ? episode->read(frame, t) : source->read(frame, t);
-      if (!got) break;
-      if (!save_frames.empty())
-        hlt::check(cv::imwrite(fmt::format("{}/frame_{:06d}.png", save_frames, n), frame),
-                   "cannot write frames to {}", save_frames);
-      const hlt::FrameResult& r = pipeline.process(frame, t);
-      if (n == 0) open_csvs();
-      states << hlt::PerceptionPipeline::states_csv_row(r) << "\n" << std::flush;
-      detections << hlt::PerceptionPipeline::detections_csv_rows(r) << std::flush;
-      hlt::check(states.good() && detections.good(),
-                 "writing {} or {} failed at frame {} (disk full?); the rows before it are kept", csv,
-                 detections_csv, n);
-      if (!overlay.empty()) {
-        cv::Mat shown = frame.clone();
-        hlt::draw_overlay(shown, camera, r);
-        if (!writer.isOpened()) {
-          writer.open(overlay, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), fps, shown.size());
-          hlt::check(writer.isOpened(), "cannot write overlay video {}", overlay);
-        }
-        writer.write(shown);
-      }
-      ++n;
-      valid += r.state.valid() ? 1 : 0;
-      sum_ms += r.total_ms;
-      ms.push_back(r.total_ms);
-      if (!quiet && n % 25 == 0)
-        std::fprintf(stderr, "  frame %lld  t %.2fs  tags %zu  %.1f ms\n", static_cast<long long>(n), t,
-                     r.detections.tags.size(), r.total_ms);
-    }
-    if (n == 0) {
-      std::fprintf(stderr, "hlt_perceive: no frames read from %s\n", input.c_str());
-      return 1;
-    }
-    std::sort(ms.begin(), ms.end());
-    std::fprintf(
-        stderr,
-        "hlt_perceive: %lld frames, %lld with a valid state, %.2f ms mean / %.2f ms median per frame\n",
-        static_cast<long long>(n), static_cast<long long>(valid), sum_ms / n, ms[ms.size() / 2]);
-    std::fprintf(stderr, "  states: %s\n  detections: %s\n", csv.c_str(), detections_csv.c_str());
-    if (!overlay.empty()) std::fprintf(stderr, "  overlay: %s\n", overlay.c_str());
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "hlt_perceive: %s\n", e.what());
-    return 1;
+  // Errors go to guarded_main: exit 2 for bad input, 3 out of memory, one line naming the tool once.
+  o.detector.refine_corners = !no_refine;
+  o.colour_fallback = !no_colour;
+  if (!hsv_low.empty()) o.colour.hsv_low = parse_hsv(hsv_low, "--hsv-low");
+  if (!hsv_high.empty()) o.colour.hsv_high = parse_hsv(hsv_high, "--hsv-high");
+  const hlt::TagConfig tags = hlt::TagConfig::load(tags_path);
+  const bool synthetic = input.rfind("synthetic", 0) == 0;
+  hlt::CameraModel camera;
+  if (!calibration.empty()) {
+    camera = hlt::CameraModel::load(calibration);
+  } else {
+    hlt::check(synthetic, "--calibration is required for real input (hlt_calibrate writes one)");
   }
+  if (synthetic && !camera.has_extrinsics())
+    camera.set_world_from_camera(hlt::TabletopScene::default_camera_pose());
+
+  std::unique_ptr<hlt::FrameSource> source;
+  std::unique_ptr<SyntheticEpisode> episode;
+  std::string description;
+  if (synthetic) {
+    int n = 60;
+    if (input.size() > 9) {
+      hlt::check(input[9] == ':', "synthetic input is 'synthetic' or 'synthetic:N', got '{}'", input);
+      try {
+        n = std::stoi(input.substr(10));
+      } catch (const std::exception&) {
+        n = -1;
+      }
+      hlt::check(n > 0, "synthetic:N needs a positive frame count, got '{}'", input);
+    }
+    episode = std::make_unique<SyntheticEpisode>(camera, tags, n, fps);
+    description = fmt::format("{} synthetic frames", n);
+  } else {
+    source = std::make_unique<hlt::FrameSource>(input, fps, camera.size());
+    description = source->description();
+  }
+  hlt::PerceptionPipeline pipeline(camera, tags, o);
+
+  if (detections_csv.empty()) {
+    const std::string stem =
+        csv.size() > 4 && csv.substr(csv.size() - 4) == ".csv" ? csv.substr(0, csv.size() - 4) : csv;
+    detections_csv = stem + "_detections.csv";
+  }
+  // Rows are flushed as they are written, so a live run stopped any way keeps what it saw. The files are
+  // opened at the first frame read, so an input that yields nothing leaves existing CSVs alone, and every
+  // write is checked: a full disk stops the run instead of dropping rows.
+  std::ofstream states, detections;
+  auto open_csvs = [&] {
+    states.open(csv);
+    detections.open(detections_csv);
+    hlt::check(states.good(), "cannot write {}", csv);
+    hlt::check(detections.good(), "cannot write {}", detections_csv);
+    states << hlt::PerceptionPipeline::states_csv_header() << "\n";
+    detections << hlt::PerceptionPipeline::detections_csv_header() << "\n";
+  };
+  if (!save_frames.empty()) hlt::ensure_writable_directory(save_frames);
+  cv::VideoWriter writer;
+
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  std::fprintf(stderr, "hlt_perceive: %s, camera %dx%d, %zu configured tags\n", description.c_str(),
+               camera.width(), camera.height(), tags.tags().size());
+  cv::Mat frame;
+  double t = 0, sum_ms = 0;
+  int64_t n = 0, valid = 0;
+  std::vector<double> ms;
+  while (!g_stop && (max_frames == 0 || n < max_frames)) {
+    const bool got = episode ? episode->read(frame, t) : source->read(frame, t);
+    if (!got) break;
+    if (!save_frames.empty())
+      hlt::check(cv::imwrite(fmt::format("{}/frame_{:06d}.png", save_frames, n), frame),
+                 "cannot write frames to {}", save_frames);
+    const hlt::FrameResult& r = pipeline.process(frame, t);
+    if (n == 0) open_csvs();
+    states << hlt::PerceptionPipeline::states_csv_row(r) << "\n" << std::flush;
+    detections << hlt::PerceptionPipeline::detections_csv_rows(r) << std::flush;
+    hlt::check(states.good() && detections.good(),
+               "writing {} or {} failed at frame {} (disk full?); the rows before it are kept", csv,
+               detections_csv, n);
+    if (!overlay.empty()) {
+      cv::Mat shown = frame.clone();
+      hlt::draw_overlay(shown, camera, r);
+      if (!writer.isOpened()) {
+        writer.open(overlay, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), fps, shown.size());
+        hlt::check(writer.isOpened(), "cannot write overlay video {}", overlay);
+      }
+      writer.write(shown);
+    }
+    ++n;
+    valid += r.state.valid() ? 1 : 0;
+    sum_ms += r.total_ms;
+    ms.push_back(r.total_ms);
+    if (!quiet && n % 25 == 0)
+      std::fprintf(stderr, "  frame %lld  t %.2fs  tags %zu  %.1f ms\n", static_cast<long long>(n), t,
+                   r.detections.tags.size(), r.total_ms);
+  }
+  hlt::check(n > 0, "no frames read from {}", input);
+  std::sort(ms.begin(), ms.end());
+  std::fprintf(
+      stderr, "hlt_perceive: %lld frames, %lld with a valid state, %.2f ms mean / %.2f ms median per frame\n",
+      static_cast<long long>(n), static_cast<long long>(valid), sum_ms / n, ms[ms.size() / 2]);
+  std::fprintf(stderr, "  states: %s\n  detections: %s\n", csv.c_str(), detections_csv.c_str());
+  if (!overlay.empty()) std::fprintf(stderr, "  overlay: %s\n", overlay.c_str());
   return 0;
 }
 

@@ -6,7 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <exception>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -202,41 +202,37 @@ int run_tool(int argc, char** argv) {
   app.add_option("--decimate", decimate, "libapriltag quad_decimate")
       ->capture_default_str()
       ->check(CLI::Range(1.0, 8.0));
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> code = hlt::parse_command_line(app, argc, argv)) return *code;
   hlt::check_finite_flags(app);
-  try {
-    std::vector<Condition> conditions;
-    auto add = [&](std::string name, ImageEffects e, CameraModel cam = CameraModel(), bool refine = true) {
-      conditions.push_back({std::move(name), e, std::move(cam), refine, e.noise_sigma > 0});
-    };
-    ImageEffects e;
-    add("clean", e);
-    add("clean, libapriltag corners only", e, CameraModel(), false);
-    e.noise_sigma = 3.0;
-    add("noise 3", e);
-    e = {};
-    e.blur_sigma = 0.6;
-    add("blur 0.6 px", e);
-    e.blur_sigma = 1.0;
-    add("blur 1.0 px", e);
-    e = {};
-    e.gain = 0.45;
-    e.noise_sigma = 2.0;
-    add("dark (x0.45) + noise 2", e);
-    e = {};
-    e.blur_sigma = 0.6;
-    e.noise_sigma = 2.0;
-    add("blur 0.6 px + noise 2", e);
-    add("lens distortion (k1 -0.2), clean", {},
-        CameraModel(640, 480, 600, 600, 319.5, 239.5, {-0.2, 0.05, 0.0005, -0.0005, 0}));
-    tag_table(conditions, seeds, decimate);
-    if (!tags_only) {
-      colour_table();
-      calibration_table();
-    }
-  } catch (const std::exception& ex) {
-    std::fprintf(stderr, "hlt_perception_eval: %s\n", ex.what());
-    return 1;
+  // Errors go to guarded_main: exit 2 for bad input, 3 out of memory, one line naming the tool once.
+  std::vector<Condition> conditions;
+  auto add = [&](std::string name, ImageEffects e, CameraModel cam = CameraModel(), bool refine = true) {
+    conditions.push_back({std::move(name), e, std::move(cam), refine, e.noise_sigma > 0});
+  };
+  ImageEffects e;
+  add("clean", e);
+  add("clean, libapriltag corners only", e, CameraModel(), false);
+  e.noise_sigma = 3.0;
+  add("noise 3", e);
+  e = {};
+  e.blur_sigma = 0.6;
+  add("blur 0.6 px", e);
+  e.blur_sigma = 1.0;
+  add("blur 1.0 px", e);
+  e = {};
+  e.gain = 0.45;
+  e.noise_sigma = 2.0;
+  add("dark (x0.45) + noise 2", e);
+  e = {};
+  e.blur_sigma = 0.6;
+  e.noise_sigma = 2.0;
+  add("blur 0.6 px + noise 2", e);
+  add("lens distortion (k1 -0.2), clean", {},
+      CameraModel(640, 480, 600, 600, 319.5, 239.5, {-0.2, 0.05, 0.0005, -0.0005, 0}));
+  tag_table(conditions, seeds, decimate);
+  if (!tags_only) {
+    colour_table();
+    calibration_table();
   }
   return 0;
 }

@@ -300,7 +300,9 @@ int run_tool(int argc, char** argv) {
   app.add_option("--episodes", o.episodes, "Number of episodes")->capture_default_str();
   app.add_option("--seed", o.seed, "Seed of the first reset (and of the random policy)")
       ->capture_default_str();
-  app.add_option("--frame-skip", o.frame_skip, "Repeat each action K simulator steps")->capture_default_str();
+  app.add_option("--frame-skip", o.frame_skip, "Repeat each action K simulator steps")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   app.add_option("--csv", o.csv,
                  "Write every step (observation, action, reward, done, truncated) to this CSV");
   app.add_option("--video", o.video, "Write the recorded episodes as a video (.mp4 or .avi)");
@@ -313,7 +315,7 @@ int run_tool(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--width", o.width, "Frame width in pixels")->capture_default_str();
   app.add_option("--height", o.height, "Frame height in pixels")->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> code = hlt::parse_command_line(app, argc, argv)) return *code;
   hlt::check_finite_flags(app);
   if (list) {
     for (const auto& n : hlt::env_names())

@@ -8,6 +8,7 @@
 // Settings are resolved in order: declared defaults, experiments/configs/<env>.yaml, the method's overlay
 // experiments/configs/methods/<method>.yaml (if there is one), --config FILE, the flags above, then
 // key=value overrides. `hlt_train --list` prints every key.
+#include <cmath>
 #include <filesystem>
 #include <iostream>
 #include <optional>
@@ -60,10 +61,16 @@ void resolve_expert_path(Config& config) {
 
 void print_summary(const Trainer& trainer) {
   const Trainer::Summary s = trainer.summary();
+  // The returns are NaN when none happened in this session (eval.every=0, a run shorter than an episode):
+  // said in words, since "return nan" reads like a diverged run.
+  auto value = [](double x, const char* none) {
+    return std::isnan(x) ? std::string(none) : fmt::format("{:.1f}", x);
+  };
   fmt::print(
-      "done: {} agent steps ({} environment steps); last evaluation return {:.1f}, last training "
-      "episode return {:.1f}\n",
-      s.agent_steps, s.env_steps, s.last_eval, s.last_return);
+      "done: {} agent steps ({} environment steps); last evaluation return {}, last training episode "
+      "return {}\n",
+      s.agent_steps, s.env_steps, value(s.last_eval, "none (no evaluation in this session)"),
+      value(s.last_return, "none (no episode ended in this session)"));
   fmt::print("results in {}/ ({}, {}, {}, {})\n", trainer.run_dir(), Trainer::kLogFile, Trainer::kConfigFile,
              Trainer::kFinalFile, Trainer::kCheckpointFile);
 }
@@ -89,7 +96,7 @@ int run(int argc, char** argv) {
   app.add_flag("--no-progress", no_progress,
                "no progress bar (it is also off when stderr is not a terminal)");
   app.add_option("overrides", overrides, "key=value config overrides, e.g. planner.samples=60");
-  CLI11_PARSE(app, argc, argv);
+  if (const std::optional<int> code = hlt::parse_command_line(app, argc, argv)) return *code;
   check_finite_flags(app);
 
   if (list) {

@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
-# Builds everything with AddressSanitizer and UndefinedBehaviorSanitizer into build-sanitize/ and runs the
-# whole test suite under them. Takes about twice as long as a normal build and test; not part of CI.
+# Builds everything with AddressSanitizer and UndefinedBehaviorSanitizer into build-sanitize/ (or
+# $HLT_BUILD_DIR) and runs the whole test suite under them, the bad-input catalogue (test_bad_inputs)
+# included. Takes about twice as long as a normal build and test; not part of CI.
 #   ./scripts/sanitize.sh [ctest arguments, e.g. -R test_util]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/setup.sh
-export HLT_BUILD_DIR=build-sanitize HLT_BUILD_TYPE=RelWithDebInfo
+export HLT_BUILD_DIR=${HLT_BUILD_DIR:-build-sanitize} HLT_BUILD_TYPE=RelWithDebInfo
 if [ ! -f "$HLT_BUILD_DIR/build.ninja" ]; then
   cmake -S . -B "$HLT_BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DHLT_SANITIZE=address,undefined \
     -DHLT_BUILD_BENCH=OFF

@@ -165,8 +165,14 @@ CameraModel CameraModel::parse(const std::string& yaml_text, const std::string& 
         "{}: field 'distortion_coefficients' must have 4, 5, 8, 12 or 14 entries, got {}", source,
         distortion.size());
 
-  CameraModel camera(width, height, k(0, 0), k(1, 1), k(0, 2), k(1, 2), distortion);
-  camera.validate(source);
+  // The constructor's checks would name "camera model", not the file at fault.
+  CameraModel camera = [&] {
+    try {
+      return CameraModel(width, height, k(0, 0), k(1, 1), k(0, 2), k(1, 2), distortion);
+    } catch (const Error& e) {
+      throw Error(fmt::format("{}: {}", source, e.what()));
+    }
+  }();
 
   if (const std::optional<cv::Mat> T = read_matrix(fs, "world_from_camera", source)) {
     check(T->rows == 4 && T->cols == 4, "{}: field 'world_from_camera' must be 4x4, got {}x{}", source,

@@ -153,6 +153,12 @@ TEST(CameraModel, BadFilesGiveErrorsNamingTheField) {
             std::string::npos)
       << parse(m);
   EXPECT_NE(parse(replaced(ok, "610.", "-10.")).find("focal lengths"), std::string::npos);
+  // Intrinsics no lens has are reported with the file they came from.
+  EXPECT_NE(parse(replaced(ok, "321.5", "1e6")).find("cam.yaml: camera model: principal point"),
+            std::string::npos)
+      << parse(replaced(ok, "321.5", "1e6"));
+  EXPECT_NE(parse(replaced(ok, "610.", "1e12")).find("cam.yaml: camera model: focal lengths"),
+            std::string::npos);
   EXPECT_NE(parse(replaced(ok, "image_width: 640", "image_width: wide"))
                 .find("field 'image_width' must be an integer"),
             std::string::npos);
