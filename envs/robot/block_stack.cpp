@@ -10,7 +10,6 @@ namespace hlt::robot {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-constexpr double kFingerTravel = 0.04;  // the Panda's, checked against the model at construction
 constexpr double kBlockYawJitter = 0.05;
 // The scene's block indices (the observation's offsets are BlockStack::kBlock and kBase).
 constexpr int kTopBlock = 0, kBaseBlock = 1;

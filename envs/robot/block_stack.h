@@ -16,9 +16,10 @@ namespace hlt::robot {
 
 class BlockStack : public Env {
  public:
-  static constexpr double kBlockHalf = 0.025;  // both blocks are 5 cm cubes
-  static constexpr double kSpeed = 0.15;       // m/s per axis at |a_i| = 1
-  static constexpr int kSteps = 200;           // of 0.1 s
+  static constexpr double kBlockHalf = 0.025;    // both blocks are 5 cm cubes
+  static constexpr double kFingerTravel = 0.04;  // the Panda's: the observed gripper value is opening / this
+  static constexpr double kSpeed = 0.15;         // m/s per axis at |a_i| = 1
+  static constexpr int kSteps = 200;             // of 0.1 s
   // The tool's workspace (robot base frame); its floor keeps the fingertips 1 cm off the table.
   static constexpr double kXMin = 0.3, kXMax = 0.75, kYMin = -0.3, kYMax = 0.35, kZMin = 0.015, kZMax = 0.3;
   // The block starts within kJitter (per axis) of (kBlockX, kBlockY), the gripper kStartHeight over that

@@ -15,23 +15,29 @@ namespace {
 using B = BlockStack;
 
 constexpr double kGain = 5.0;             // 1/s: velocity per metre of error
-constexpr double kFingerTravel = 0.04;    // observation's gripper value is opening / travel
 constexpr double kApproachHeight = 0.07;  // tool centre point over the block's centre before descending
 constexpr double kCarryClearance = 0.03;  // the block's bottom over the base's top while moving
 constexpr double kRetreatHeight = 0.05;   // tool centre point over the stacked block's centre at the end
 constexpr double kOpen = 0.035;           // m: fingers well clear of a 5 cm block
 
+// The observation's parts the phases are decided on.
 struct View {
   Eigen::Vector3d ee, block, base, stack;
-  double opening;
-  bool held;
+  double opening = 0;  // m, mean of the two fingers
+  bool held = false;
 };
 
 View view(const Eigen::VectorXd& o) {
   check(o.size() == B::kObsDim, "scripted block_stack expert: observation has {} values, expected {}",
         o.size(), B::kObsDim);
-  return {o.segment<3>(B::kEe), o.segment<3>(B::kBlock),        o.segment<3>(B::kBase),
-          B::stack_point(o),    o[B::kGripper] * kFingerTravel, B::grasped(o)};
+  View v;
+  v.ee = o.segment<3>(B::kEe);
+  v.block = o.segment<3>(B::kBlock);
+  v.base = o.segment<3>(B::kBase);
+  v.stack = B::stack_point(o);
+  v.opening = o[B::kGripper] * B::kFingerTravel;
+  v.held = B::grasped(o);
+  return v;
 }
 
 // The block sits on the base (centred, at the stacking height, a little slack for it settling).
