@@ -20,7 +20,7 @@ std::unique_ptr<PolicySource> make_fixed_policy(const std::string& spec, const E
           env.action_dim());
     return expert;
   }
-  return make_simple_policy(spec, env.action_dim(), seed);
+  return make_policy_for(spec, env, seed);
 }
 
 }  // namespace hlt

@@ -1,5 +1,6 @@
 // Fixed policies named by a string, as the tools and the imitation loop's demonstrator take them: the
-// simple ones of envs/rollout.h ("zero", "random", "constant:V[,...]") and "expert:PATH" (ExpertPolicy).
+// ones of envs/rollout.h ("zero", "random", "constant:V[,...]", "scripted:NAME" for an environment's scripted
+// expert) and "expert:PATH" (ExpertPolicy).
 // Trained policies ("checkpoint:PATH") are loaded by agents/saved_policy.h, which also needs to know the
 // frame skip before the environment is built.
 #pragma once

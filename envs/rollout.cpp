@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 
+#include "envs/scripted.h"
 #include "hlt/util/error.h"
 
 namespace hlt {
@@ -78,6 +79,15 @@ std::unique_ptr<PolicySource> make_simple_policy(const std::string& spec, int ac
     return std::make_unique<ConstantPolicy>(a, spec);
   }
   throw Error(fmt::format("unknown policy '{}'; accepted: {}", spec, kPolicyForms));
+}
+
+std::unique_ptr<PolicySource> make_policy_for(const std::string& spec, const Env& env, uint64_t seed) {
+  if (spec.rfind(kScriptedPrefix, 0) == 0)
+    return make_scripted_policy(spec.substr(std::string(kScriptedPrefix).size()), env.name(), seed);
+  if (spec == "zero" || spec == "random" || spec.rfind("constant:", 0) == 0)
+    return make_simple_policy(spec, env.action_dim(), seed);
+  throw Error(fmt::format("unknown policy '{}'; accepted: {}, scripted:NAME (known: {})", spec, kPolicyForms,
+                          fmt::join(scripted_policy_names(), ", ")));
 }
 
 EpisodeStats run_episode(Env& env, PolicySource& policy, std::optional<uint64_t> seed,

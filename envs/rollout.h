@@ -26,6 +26,11 @@ class PolicySource {
 // "constant:V1,V2,..." (one value per action component). Throws hlt::Error naming the accepted forms.
 std::unique_ptr<PolicySource> make_simple_policy(const std::string& spec, int action_dim, uint64_t seed);
 
+// A policy spec that needs no trained model, for `env`: the simple forms above or "scripted:NAME" (a
+// registered scripted policy for this environment, envs/scripted.h). Tools that take a --policy resolve
+// everything but their own model-backed forms here.
+std::unique_ptr<PolicySource> make_policy_for(const std::string& spec, const Env& env, uint64_t seed);
+
 struct EpisodeStats {
   double episode_return = 0.0;
   int length = 0;

@@ -1,8 +1,9 @@
 // hlt_rollout: runs a registered environment with a simple or saved policy for N episodes and reports the
 // returns; optionally writes the trajectory as CSV and the frames as a video or an image strip.
 //
-//   hlt_rollout --env cartpole_swingup --policy zero|random|constant:0.5|checkpoint:PATH --episodes 10
-//               --seed 0 [--frame-skip K] [--csv traj.csv] [--video out.mp4] [--strip out.png]
+//   hlt_rollout --env cartpole_swingup --episodes 10 --seed 0
+//               --policy zero|random|constant:0.5|checkpoint:PATH|expert:PATH|scripted:NAME
+//               [--frame-skip K] [--csv traj.csv] [--video out.mp4] [--strip out.png] [--demos out.hltd]
 #include <algorithm>
 #include <cmath>
 #include <iostream>
@@ -42,8 +43,8 @@ bool is_checkpoint(const std::string& spec) {
   return spec.rfind(kCheckpointPrefix, 0) == 0;
 }
 
-// The policy named on the command line: a simple one, or (`saved`, loaded from "checkpoint:PATH") the mean
-// action of a policy trained by hlt_train.
+// The policy named on the command line: an expert's weights ("expert:PATH"), the mean action of a policy
+// trained by hlt_train (`saved`, loaded from "checkpoint:PATH"), or a simple or scripted one.
 std::unique_ptr<PolicySource> make_policy(const std::string& spec, std::optional<SavedPolicy>& saved,
                                           const Env& env, uint64_t seed) {
   if (saved) {
@@ -295,7 +296,8 @@ int run_tool(int argc, char** argv) {
   bool list = false;
   app.add_flag("--list", list, "List the registered environments and exit");
   app.add_option("--env", o.env, "Environment name (see --list)");
-  app.add_option("--policy", o.policy, "zero | random | constant:V[,V2,...] | checkpoint:PATH | expert:PATH")
+  app.add_option("--policy", o.policy,
+                 "zero | random | constant:V[,V2,...] | checkpoint:PATH | expert:PATH | scripted:NAME")
       ->capture_default_str();
   app.add_option("--episodes", o.episodes, "Number of episodes")->capture_default_str();
   app.add_option("--seed", o.seed, "Seed of the first reset (and of the random policy)")

@@ -45,8 +45,14 @@ void EeVelocityController::command(const Vector6d& twist) {
 
 Vector7d EeVelocityController::joint_velocities(const Arm& arm, double h) const {
   Vector6d twist = filtered_;
-  twist.head<3>() =
-      clamp_to_workspace(arm.tool_pose().translation(), twist.head<3>(), settings_.workspace, h);
+  // Held degrees of freedom are corrected at every sub-step from the current pose, so contact forces and
+  // tracking errors do not accumulate into drift over an episode.
+  const Eigen::Isometry3d pose = arm.tool_pose();
+  if (settings_.hold_height)
+    twist[2] = settings_.hold_gain * (*settings_.hold_height - pose.translation().z());
+  if (settings_.hold_orientation)
+    twist.tail<3>() = settings_.hold_gain * orientation_error(*settings_.hold_orientation, pose.linear());
+  twist.head<3>() = clamp_to_workspace(pose.translation(), twist.head<3>(), settings_.workspace, h);
   Vector7d qd = damped_least_squares(arm.jacobian(), twist, settings_.damping);
   const ArmModel& m = arm.model();
   const Vector7d q = arm.positions();

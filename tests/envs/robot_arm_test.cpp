@@ -178,6 +178,29 @@ TEST_P(Arms, WorkspaceClampKeepsTheToolInside) {
   EXPECT_NEAR(p.z(), 0.1, 0.005);
 }
 
+TEST_P(Arms, HeldHeightAndOrientationOverrideTheCommand) {
+  TabletopSettings s = settings_for(GetParam(), {});
+  s.control.hold_height = 0.2;
+  s.control.hold_orientation = tool_down({0, 0, 0}).linear();
+  Tabletop scene(s);
+  // Start 2 cm off the held height: the hold brings the tool back.
+  place_tool(scene, {0.55, -0.05, 0.22});
+  // The command asks to climb and to turn; both are replaced by the holds, the planar part is followed.
+  Vector6d twist;
+  twist << 0.05, 0.03, 0.1, 0.3, -0.2, 0.5;
+  for (int i = 0; i < 20; ++i)
+    scene.step(twist);
+  const Eigen::Isometry3d end = scene.arm().tool_pose();
+  const double tilt = orientation_error(*s.control.hold_orientation, end.linear()).norm();
+  std::printf(
+      "[%s] 2 s of a climbing, turning command under the holds: height error %.2e m, orientation %.2e rad\n",
+      scene.arm().model().name.c_str(), end.translation().z() - 0.2, tilt);
+  EXPECT_NEAR(end.translation().z(), 0.2, 1e-3);
+  EXPECT_LT(tilt, 2e-3);
+  EXPECT_NEAR(end.translation().x(), 0.55 + 0.05 * 2.0, 0.01);
+  EXPECT_NEAR(end.translation().y(), -0.05 + 0.03 * 2.0, 0.01);
+}
+
 TEST(EeControl, LowPassFilterAndHelpers) {
   EeControlSettings s;
   s.filter = 0.75;

@@ -1,0 +1,148 @@
+#include "envs/robot/block_stack_expert.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "envs/robot/block_stack.h"
+#include "hlt/util/error.h"
+
+namespace hlt::robot {
+
+namespace {
+
+using B = BlockStack;
+
+constexpr double kGain = 5.0;             // 1/s: velocity per metre of error
+constexpr double kApproachHeight = 0.07;  // tool centre point over the block's centre before descending
+constexpr double kCarryClearance = 0.03;  // the block's bottom over the base's top while moving
+constexpr double kRetreatHeight = 0.05;   // tool centre point over the stacked block's centre at the end
+constexpr double kOpen = 0.035;           // m: fingers well clear of a 5 cm block
+
+// The observation's parts the phases are decided on.
+struct View {
+  Eigen::Vector3d ee, block, base, stack;
+  double opening = 0;  // m, mean of the two fingers
+  bool held = false;
+};
+
+View view(const Eigen::VectorXd& o) {
+  check(o.size() == B::kObsDim, "scripted block_stack expert: observation has {} values, expected {}",
+        o.size(), B::kObsDim);
+  View v;
+  v.ee = o.segment<3>(B::kEe);
+  v.block = o.segment<3>(B::kBlock);
+  v.base = o.segment<3>(B::kBase);
+  v.stack = B::stack_point(o);
+  v.opening = o[B::kGripper] * B::kFingerTravel;
+  v.held = B::grasped(o);
+  return v;
+}
+
+// The block sits on the base (centred, at the stacking height, a little slack for it settling).
+bool on_base(const View& v) {
+  return (v.block.head<2>() - v.base.head<2>()).norm() < 0.01 && std::abs(v.block.z() - v.stack.z()) < 0.003;
+}
+
+}  // namespace
+
+StackExpert::StackExpert(uint64_t seed, double noise) : noise_(noise), rng_(seed) {
+  check(noise >= 0 && std::isfinite(noise), "scripted block_stack expert: noise must be >= 0, got {}", noise);
+}
+
+std::string StackExpert::describe() const {
+  return fmt::format("scripted block_stack expert (noise {})", noise_);
+}
+
+StackExpert::Phase StackExpert::phase(const Eigen::VectorXd& o) {
+  const View v = view(o);
+  if (v.held) {
+    if (on_base(v)) return Phase::kRelease;
+    const Eigen::Vector2d e = v.base.head<2>() - v.block.head<2>();
+    const double carry_z = v.stack.z() + kCarryClearance;
+    if (e.norm() < 0.004) return Phase::kLower;
+    // Up first: moving sideways low would drag the block or knock it against the base.
+    if (v.block.z() < carry_z - 0.01 && e.norm() > 0.02) return Phase::kLift;
+    return Phase::kMove;
+  }
+  if (on_base(v) || ((v.block.head<2>() - v.base.head<2>()).norm() < B::kPlaceXY &&
+                     std::abs(v.block.z() - v.stack.z()) < B::kPlaceZ)) {
+    return v.opening < kOpen ? Phase::kRelease : Phase::kRetreat;
+  }
+  const double e = (v.block.head<2>() - v.ee.head<2>()).norm();
+  const bool low = v.ee.z() < v.block.z() + kApproachHeight - 0.01;
+  // Once low, a wider band keeps the descent going under noise; a larger error goes back up first.
+  if (e < 0.006 || (low && e < 0.012)) {
+    return std::abs(v.ee.z() - v.block.z()) < 0.004 ? Phase::kClose : Phase::kDescend;
+  }
+  return Phase::kApproach;
+}
+
+Eigen::Vector4d StackExpert::nominal_action(const Eigen::VectorXd& o) {
+  const View v = view(o);
+  Eigen::Vector3d vel = Eigen::Vector3d::Zero();
+  double grip = -1.0;
+  switch (phase(o)) {
+    case Phase::kApproach: {
+      const Eigen::Vector3d over = v.block + Eigen::Vector3d(0, 0, kApproachHeight);
+      vel = kGain * (over - v.ee);
+      // Well below the approach height, rise before moving sideways so the open fingers miss the block.
+      if (v.ee.z() < over.z() - 0.02) vel.head<2>().setZero();
+      break;
+    }
+    case Phase::kDescend:
+      vel = kGain * (v.block - v.ee);
+      break;
+    case Phase::kClose:
+      vel.head<2>() = kGain * (v.block - v.ee).head<2>();
+      grip = 1.0;
+      break;
+    case Phase::kLift:
+      vel.z() = kGain * (v.stack.z() + kCarryClearance - v.block.z());
+      grip = 1.0;
+      break;
+    case Phase::kMove: {
+      const Eigen::Vector3d over = v.stack + Eigen::Vector3d(0, 0, kCarryClearance);
+      vel = kGain * (over - v.block);
+      grip = 1.0;
+      break;
+    }
+    case Phase::kLower: {
+      vel.head<2>() = kGain * (v.base - v.block).head<2>();
+      // Aim a little below the stacking height, so the block reaches the base at a few cm/s at most.
+      vel.z() = std::max(kGain * (v.stack.z() - 0.004 - v.block.z()), -0.05);
+      grip = 1.0;
+      break;
+    }
+    case Phase::kRelease:
+      break;
+    case Phase::kRetreat:
+      vel.z() = kGain * (v.block.z() + kRetreatHeight - v.ee.z());
+      break;
+  }
+  Eigen::Vector4d a;
+  a.head<3>() = vel / B::kSpeed;
+  // Scaled as a whole, so that a saturated command keeps its direction.
+  const double biggest = a.head<3>().cwiseAbs().maxCoeff();
+  if (biggest > 1.0) a.head<3>() /= biggest;
+  a[3] = grip;
+  return a;
+}
+
+Eigen::VectorXd StackExpert::act(const Eigen::VectorXd& observation) {
+  Eigen::Vector4d a = nominal_action(observation);
+  for (int i = 0; i < 4; ++i)
+    a[i] += noise_ * normal_(rng_);
+  return a.cwiseMax(-1.0).cwiseMin(1.0);
+}
+
+}  // namespace hlt::robot
+
+namespace hlt {
+
+std::unique_ptr<PolicySource> make_block_stack_expert(uint64_t seed) {
+  return std::make_unique<robot::StackExpert>(seed);
+}
+
+}  // namespace hlt
