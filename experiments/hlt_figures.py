@@ -53,7 +53,7 @@ except ImportError:  # pragma: no cover
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 from hlt_results import (LABELS, REPO, ResultsError, find_runs, last_common_step, mean_band,  # noqa: E402
-                         finish_registry, read_config, read_scalars, sorted_curve, start_registry,
+                         finish_registry, read_config, read_scalars, read_yaml, sorted_curve, start_registry,
                          values_at)
 
 PROG = "hlt_figures"
@@ -177,14 +177,7 @@ def frame_skip(group):
 
 
 def load_reference(path, reg):
-    import yaml
-    try:
-        with open(path) as f:
-            doc = yaml.safe_load(f)
-    except OSError as e:
-        raise ResultsError(f"cannot read {path}: {e.strerror}")
-    except yaml.YAMLError as e:
-        raise ResultsError(f"{path} is not valid YAML: {str(e).splitlines()[0]}")
+    doc = read_yaml(path)
     results = (doc or {}).get("results") or {}
     for env, methods in results.items():
         if env not in reg.envs:

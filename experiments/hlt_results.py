@@ -141,20 +141,25 @@ def top_level_value(config_path, key):
     return None
 
 
-def read_config(run):
-    """config.yaml as a flat dict {'section.key': value} (needs PyYAML); the '# blas:' comment is skipped."""
+def read_yaml(path):
+    """A YAML file's document (needs PyYAML); an unreadable or invalid file is a ResultsError naming it."""
     try:
         import yaml
     except ImportError:
         raise ResultsError("needs PyYAML: run with Debian's /usr/bin/python3 (apt-get install python3-yaml)")
-    path = os.path.join(run, "config.yaml")
     try:
         with open(path) as f:
-            doc = yaml.safe_load(f)
+            return yaml.safe_load(f)
     except OSError as e:
         raise ResultsError(f"cannot read {path}: {e.strerror}")
     except yaml.YAMLError as e:
         raise ResultsError(f"{path} is not valid YAML: {str(e).splitlines()[0]}")
+
+
+def read_config(run):
+    """config.yaml as a flat dict {'section.key': value} (needs PyYAML); the '# blas:' comment is skipped."""
+    path = os.path.join(run, "config.yaml")
+    doc = read_yaml(path)
     if not isinstance(doc, dict):
         raise ResultsError(f"{path} is not an hlt_train config (not a mapping)")
     flat = {}
