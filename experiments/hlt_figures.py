@@ -43,6 +43,7 @@ import os
 import re
 import shlex
 import sys
+import textwrap
 
 try:
     import numpy as np
@@ -176,6 +177,12 @@ def frame_skip(group):
     return skips.pop() if len(skips) == 1 else None
 
 
+def suptitle(fig, text):
+    """The figure's title, wrapped to its width (a one-column figure would cut it off)."""
+    width = max(30, int(fig.get_figwidth() * 11))
+    fig.suptitle("\n".join(textwrap.wrap(text, width)), fontsize=10)
+
+
 def load_reference(path, reg):
     doc = read_yaml(path)
     results = (doc or {}).get("results") or {}
@@ -271,7 +278,7 @@ def benchmark_figure(spec, groups, reg, names, args, plt, notes):
             absent = [m for m in shown if (env, m) not in groups]
             if absent and tag == EVAL_TAG:
                 notes.append(f"{spec.number}, {env}: no runs of {', '.join(absent)}")
-    fig.suptitle(f"{spec.number}-style: {spec.title} (mean +- std over seeds)", fontsize=10)
+    suptitle(fig, f"{spec.number}-style: {spec.title} (mean +- std over seeds)")
     fig.tight_layout()
     path = os.path.join(args.out, f"{spec.name}_{'deterministic' if spec.name == 'fig1' else 'stochastic'}.png")
     save(fig, path)
@@ -321,7 +328,7 @@ def component_figures(groups, reg, names, args, plt, notes):
             ax.set_ylabel("evaluation return")
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7, loc="lower right", framealpha=0.6)
-        fig.suptitle("Fig. 4-style: the hybrid's components alone (mean +- std over seeds)", fontsize=10)
+        suptitle(fig, "Fig. 4-style: the hybrid's components alone (mean +- std over seeds)")
         fig.tight_layout()
         path = os.path.join(args.out, f"fig4_components_{env}.png")
         save(fig, path)
@@ -377,7 +384,7 @@ def imitation_figure(groups, reg, names, args, plt, notes):
         ax.set_ylabel("return")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="best")
-    fig.suptitle("Fig. 5-style: imitation (mean +- std over seeds)", fontsize=10)
+    suptitle(fig, "Fig. 5-style: imitation (mean +- std over seeds)")
     fig.tight_layout()
     path = os.path.join(args.out, "fig5_imitation.png")
     save(fig, path)
