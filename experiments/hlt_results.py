@@ -13,6 +13,8 @@ import subprocess
 
 import numpy as np
 
+from hlt_sweep import is_executable, train_path  # one lookup of hlt_train for both tools
+
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 LABELS = {
@@ -33,14 +35,8 @@ class ResultsError(Exception):
 
 def train_binary(train=None):
     """hlt_train: the given path, else $HLT_BUILD_DIR/experiments/hlt_train, else build/experiments/hlt_train."""
-    if train:
-        path = train
-    elif os.environ.get("HLT_BUILD_DIR"):
-        path = os.path.join(os.environ["HLT_BUILD_DIR"], "experiments", "hlt_train")
-    else:
-        path = os.path.join(REPO, "build", "experiments", "hlt_train")
-    path = os.path.abspath(path)
-    if not (os.path.isfile(path) and os.access(path, os.X_OK)):
+    path = train_path(train)
+    if not is_executable(path):
         raise ResultsError(f"{path} is not an executable hlt_train (build it with ./scripts/build.sh hlt_train, "
                            "or give --train or HLT_BUILD_DIR): its --help names the environments and methods")
     return path

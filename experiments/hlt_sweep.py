@@ -503,15 +503,25 @@ def record_failure(run, message):
 # ---------------------------------------------------------------------------------------------- subcommands
 
 
-def train_binary(args):
-    if args.train:
-        path = args.train
+def train_path(train=None):
+    """The hlt_train to use, as an absolute path: `train` if given, else $HLT_BUILD_DIR/experiments/hlt_train,
+    else the repository's build/experiments/hlt_train (whether it is an executable is the caller's check)."""
+    if train:
+        path = train
     elif os.environ.get("HLT_BUILD_DIR"):
         path = os.path.join(os.environ["HLT_BUILD_DIR"], "experiments", "hlt_train")
     else:
         path = os.path.join(REPO, "build", "experiments", "hlt_train")
-    path = os.path.abspath(path)
-    if not (os.path.isfile(path) and os.access(path, os.X_OK)):
+    return os.path.abspath(path)
+
+
+def is_executable(path):
+    return os.path.isfile(path) and os.access(path, os.X_OK)
+
+
+def train_binary(args):
+    path = train_path(args.train)
+    if not is_executable(path):
         raise SweepError("%s is not an executable hlt_train (build it with ./scripts/build.sh, or give "
                          "--train or HLT_BUILD_DIR)" % path)
     return path
