@@ -25,10 +25,6 @@ double wrap(double a) {
   return a - kPi;
 }
 
-Eigen::Matrix3d tool_down() {
-  return Eigen::Vector3d(1, -1, -1).asDiagonal();
-}
-
 TabletopSettings push_settings() {
   TabletopSettings s;
   s.arm = ArmKind::kSawyer;

@@ -14,10 +14,6 @@ constexpr double kBlockYawJitter = 0.05;
 // The scene's block indices (the observation's offsets are BlockStack::kBlock and kBase).
 constexpr int kTopBlock = 0, kBaseBlock = 1;
 
-Eigen::Matrix3d tool_down() {
-  return Eigen::Vector3d(1, -1, -1).asDiagonal();
-}
-
 TabletopSettings stack_settings() {
   TabletopSettings s;
   s.arm = ArmKind::kPanda;

@@ -22,6 +22,12 @@
 
 namespace hlt::robot {
 
+// The tool pointing straight down at the table (x along the table's x, z down): the orientation both tasks
+// start in and hold.
+inline Eigen::Matrix3d tool_down() {
+  return Eigen::Vector3d(1, -1, -1).asDiagonal();
+}
+
 enum class ArmKind { kSawyer, kPanda };
 
 struct BlockSpec {
