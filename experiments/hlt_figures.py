@@ -15,10 +15,12 @@ groups them by environment and method as their config.yaml says, and writes to -
   fig4_components_<env>.png  paper Fig. 4: each hybrid's evaluation return, its policy alone
                              (eval/policy_return_mean) and its planner alone (eval/planner_return_mean), with
                              the same figure's baselines, for every environment whose runs logged them
-  fig5_imitation.png         paper Fig. 5: return against the number of expert demonstrations, for runs that
-                             log imitation/demonstrations (the count so far) and, at the same steps,
-                             imitation/expert_return, imitation/bc_return (behaviour cloning alone) and
-                             imitation/hybrid_return (hybrid imitation); skipped with a note until one does
+  fig5_imitation.png         paper Fig. 5: test return against the number of expert demonstrations, for runs
+                             that log imitation/demonstrations (the count so far): each imitation method's
+                             imitation/test_return, a hybrid's policy alone (imitation/policy_return, where
+                             it differs from the test return) and the expert from the same start states
+                             (imitation/expert_return, pooled over all runs of the environment); the
+                             markdown adds a table of the values per count
 
 Curves are the mean over seeds with a band of one standard deviation against environment steps; the legend
 gives every curve's seed count. The markdown (--markdown, default OUT/results.md) holds sections, each
@@ -63,9 +65,9 @@ MIG_TAG = "train/mode_insertion_gradient"
 COMPONENT_TAGS = [(EVAL_TAG, "hybrid", "-"), ("eval/policy_return_mean", "policy alone", "--"),
                   ("eval/planner_return_mean", "planner alone", ":")]
 IMITATION_X = "imitation/demonstrations"
-IMITATION_TAGS = [("imitation/expert_return", "expert", "#000000", "--"),
-                  ("imitation/bc_return", "behaviour cloning", "#8c564b", ":"),
-                  ("imitation/hybrid_return", "hybrid imitation", None, "-")]
+IMITATION_TEST = "imitation/test_return"
+IMITATION_POLICY = "imitation/policy_return"
+IMITATION_EXPERT = "imitation/expert_return"
 # Config keys that say how a run was run, not what was run: runs differing only in these are one variant.
 NOT_VARIANT = {"seed", "threads", "train.threads", "checkpoint.every", "train.agent_steps"}
 SECTIONS = ["provenance", "table", "seeds", "fig1", "fig2", "fig4", "fig5", "notes"]
@@ -355,41 +357,73 @@ def matplotlib_ticker():
     return matplotlib.ticker
 
 
-def imitation_figure(groups, reg, names, args, plt, notes):
+def imitation_rows(groups, reg):
+    """Fig. 5's curves per environment: [(label, colour key, linestyle, [curves])], the expert first."""
     imitation = [g for gs in groups.values() for g in gs if any(IMITATION_X in r.scalars for r in g.runs)]
-    if not imitation:
-        notes.append(f"Fig. 5 not drawn: no run logged {IMITATION_X} (imitation learning is not built yet)")
-        return None, []
     envs = sorted({g.env for g in imitation}, key=reg.env_key)
-    fig, axes = plt.subplots(1, len(envs), figsize=(5.2 * len(envs), 3.8), squeeze=False)
-    caption = []
-    for ax, env in zip(axes[0], envs):
-        for group in sorted((g for g in imitation if g.env == env), key=lambda g: (reg.method_key(g.method),
-                                                                                     g.index)):
-            for tag, role, colour, linestyle in IMITATION_TAGS:
-                curves = [c for c in (imitation_curve(r, tag) for r in group.runs) if c is not None]
-                if not curves:
-                    notes.append(f"Fig. 5, {env}, {group.label}: no {tag}")
-                    continue
-                grid, mean, std = mean_band(curves)
-                colour = colour or reg.colour(group.method, names)
-                ax.plot(grid, mean, color=colour, linestyle=linestyle, marker="o", markersize=3,
-                        label=f"{role} ({group.label}, {seeds_word(len(curves))})")
-                ax.fill_between(grid, mean - std, mean + std, color=colour, alpha=0.12, linewidth=0)
-                caption.append(f"{env}, {group.label}, {role}: {seeds_word(len(curves))}, {int(grid[0])}-"
-                               f"{int(grid[-1])} demonstrations")
+    out = {}
+    for env in envs:
+        mine = sorted((g for g in imitation if g.env == env), key=lambda g: (reg.method_key(g.method), g.index))
+        expert = [c for g in mine for c in (imitation_curve(r, IMITATION_EXPERT) for r in g.runs) if c is not None]
+        rows = [("expert", None, "--", expert)] if expert else []
+        for group in mine:
+            tests = [imitation_curve(r, IMITATION_TEST) for r in group.runs]
+            policies = [imitation_curve(r, IMITATION_POLICY) for r in group.runs]
+            rows.append((group.label, group.method, "-", [c for c in tests if c is not None]))
+            # a hybrid's policy alone; for behaviour cloning the policy is the test, so nothing new to draw
+            differs = [p for p, t in zip(policies, tests) if p is not None and t is not None and
+                       (len(p[1]) != len(t[1]) or not np.array_equal(p[1], t[1]))]
+            if differs:
+                rows.append((f"{group.label}, policy alone", group.method, ":",
+                             [p for p in policies if p is not None]))
+        out[env] = rows
+    return out
+
+
+def imitation_figure(groups, reg, names, args, plt, notes):
+    rows = imitation_rows(groups, reg)
+    if not rows:
+        notes.append(f"Fig. 5 not drawn: no run logged {IMITATION_X}")
+        return None, [], ""
+    fig, axes = plt.subplots(1, len(rows), figsize=(5.2 * len(rows), 3.8), squeeze=False)
+    caption, tables = [], []
+    for ax, (env, env_rows) in zip(axes[0], rows.items()):
+        counts = None
+        table = []
+        for label, method, linestyle, curves in env_rows:
+            if not curves:
+                notes.append(f"Fig. 5, {env}, {label}: no {IMITATION_TEST}")
+                continue
+            grid, mean, std = mean_band(curves)
+            colour = "#000000" if method is None else reg.colour(method, names)
+            ax.plot(grid, mean, color=colour, linestyle=linestyle, marker="o", markersize=3,
+                    label=f"{label} ({seeds_word(len(curves))})")
+            ax.fill_between(grid, mean - std, mean + std, color=colour, alpha=0.12, linewidth=0)
+            caption.append(f"{env}, {label}: {seeds_word(len(curves))}, {int(grid[0])}-{int(grid[-1])} "
+                           "demonstrations")
+            counts = grid if counts is None else np.union1d(counts, grid)
+            table.append((label, len(curves), dict(zip(grid.astype(int), zip(mean, std)))))
         ax.set_title(env)
         ax.set_xlabel("expert demonstrations")
         ax.xaxis.set_major_locator(matplotlib_ticker().MaxNLocator(integer=True))
-        ax.set_ylabel("return")
+        ax.set_ylabel("test episode return")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="best")
+        if table:
+            cols = [int(c) for c in counts]
+            lines = [f"{env}: test return after each demonstration, mean +- std over seeds (n):", "",
+                     "| | n | " + " | ".join(str(c) for c in cols) + " |",
+                     "|---|---|" + "---|" * len(cols)]
+            for label, n, values in table:
+                cells = [f"{values[c][0]:.0f} +- {values[c][1]:.0f}" if c in values else "" for c in cols]
+                lines.append(f"| {label} | {n} | " + " | ".join(cells) + " |")
+            tables.append("\n".join(lines))
     suptitle(fig, "Fig. 5-style: imitation (mean +- std over seeds)")
     fig.tight_layout()
     path = os.path.join(args.out, "fig5_imitation.png")
     save(fig, path)
     plt.close(fig)
-    return path, caption
+    return path, caption, "\n\n".join(tables)
 
 
 # ----------------------------------------------------------------------------------------------- markdown
@@ -637,6 +671,8 @@ def main():
     for gs in groups.values():
         for group in gs:
             s = final_stats(group, args.max_step)
+            if s is None and any(IMITATION_X in r.scalars for r in group.runs):
+                continue  # an imitation run is measured per demonstration (Fig. 5), not by eval/return_mean
             if s is None:
                 notes.append(f"{group.env}/{group.label}: no {EVAL_TAG}" +
                              (f" at or before step {args.max_step}" if args.max_step else ""))
@@ -673,13 +709,15 @@ def main():
                 "over seeds.", caption) for env, path, caption in components)
         else:
             out["fig4"] = "_Not drawn: no hybrid run logged eval/policy_return_mean or eval/planner_return_mean._"
-        path, caption = drawn["fig5"]
+        path, caption, table = drawn["fig5"]
         out["fig5"] = figure_section(
-            path, base, "Fig. 5-style", "Fig. 5-style: return against the number of expert demonstrations "
-            f"(`{IMITATION_X}`): expert (`imitation/expert_return`), behaviour cloning "
-            "(`imitation/bc_return`), hybrid imitation (`imitation/hybrid_return`), mean +- std over seeds."
-            if path else f"no run logged `{IMITATION_X}` (with imitation/expert_return, imitation/bc_return, "
-            "imitation/hybrid_return at the same steps); imitation learning is not built yet.", caption)
+            path, base, "Fig. 5-style", "Fig. 5-style: test episode return against the number of expert "
+            f"demonstrations (`{IMITATION_X}`) of each imitation method (`{IMITATION_TEST}`), a hybrid's "
+            f"policy alone (`{IMITATION_POLICY}`, dotted) and the expert run from the same start states "
+            f"(`{IMITATION_EXPERT}`, dashed), mean +- std over seeds."
+            if path else f"no run logged `{IMITATION_X}`.", caption)
+        if table:
+            out["fig5"] += "\n\n" + table
         out["notes"] = "\n".join(f"- {n}" for n in notes) if notes else "Nothing was skipped."
         return out
 

@@ -113,8 +113,8 @@ def build_tree(root):
         "eval/return_mean": ramp(50.0),
         "imitation/demonstrations": [(1000, 1), (2000, 2), (3000, 3)],
         "imitation/expert_return": [(1000, 2300.0), (2000, 2300.0), (3000, 2300.0)],
-        "imitation/bc_return": [(1000, 100.0), (2000, 400.0), (3000, 900.0)],
-        "imitation/hybrid_return": [(1000, 300.0), (2000, 1200.0), (3000, 2100.0)],
+        "imitation/test_return": [(1000, 300.0), (2000, 1200.0), (3000, 2100.0)],
+        "imitation/policy_return": [(1000, 100.0), (2000, 400.0), (3000, 900.0)],
     })
 
 
@@ -228,7 +228,13 @@ class Figures(unittest.TestCase):
         self.assertIn("pendulum, evaluation return: hybrid-deterministic, 2 seeds, steps 0-8000", fig1)
         self.assertIn("cartpole_swingup, mode insertion gradient: hybrid-deterministic, 1 seed, steps 0-8000", fig1)
         fig5 = section(self.markdown, "fig5")
-        self.assertIn("ant, hybrid-stochastic, hybrid imitation: 1 seed, 1-3 demonstrations", fig5)
+        self.assertIn("ant, hybrid-stochastic: 1 seed, 1-3 demonstrations", fig5)
+        self.assertIn("ant, hybrid-stochastic, policy alone: 1 seed, 1-3 demonstrations", fig5)
+        self.assertIn("ant, expert: 1 seed, 1-3 demonstrations", fig5)
+        # the values per count, computed by hand from the run above
+        self.assertIn("| expert | 1 | 2300 +- 0 | 2300 +- 0 | 2300 +- 0 |", fig5)
+        self.assertIn("| hybrid-stochastic | 1 | 300 +- 0 | 1200 +- 0 | 2100 +- 0 |", fig5)
+        self.assertIn("| hybrid-stochastic, policy alone | 1 | 100 +- 0 | 400 +- 0 | 900 +- 0 |", fig5)
 
     def test_update_rewrites_only_the_marked_sections(self):
         with open(self.doc) as f:
