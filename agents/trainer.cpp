@@ -395,8 +395,10 @@ struct Trainer::Impl {
 
   // Runs one episode of `policy` on the training environment (counted in env_steps, and in agent_steps if
   // `agent` acts), keeping its transitions.
+  // `after_step` runs after each step (the controller's diagnostics then describe its action).
   EpisodeStats record_episode(PolicySource& policy, uint64_t reset_seed, int max_steps, bool agent,
-                              std::vector<Recorded>& out, const std::function<void()>& on_reset = {}) {
+                              std::vector<Recorded>& out, const std::function<void()>& on_reset = {},
+                              const std::function<void()>& after_step = {}) {
     out.clear();
     return run_episode(
         *env, policy, reset_seed,
@@ -405,6 +407,7 @@ struct Trainer::Impl {
               {t.observation, t.action, t.result.observation, t.result.reward, t.result.terminated});
           env_steps += env->last_step_frames();
           if (agent) ++agent_steps;
+          if (after_step) after_step();
         },
         on_reset, max_steps);
   }
@@ -444,9 +447,17 @@ struct Trainer::Impl {
     train_learners();
 
     const uint64_t start = derive_seed(seed, kEvalEpisode) ^ i;
+    // The planner's weight diagnostics over the test episode say whether it trusted a few rollouts.
+    Stats ess, saturated;
     ControllerPolicy tester(*controller, [this](Controller& c) { tell_interactions(c); });
-    const EpisodeStats test =
-        record_episode(tester, start, test_steps, true, episode, [&] { tester.reset(); });
+    const EpisodeStats test = record_episode(
+        tester, start, test_steps, true, episode, [&] { tester.reset(); },
+        [&] {
+          const double e = controller->diagnostics().weight_ess;
+          const double sat = controller->diagnostics().saturated_weight;
+          if (std::isfinite(e)) ess.add(e);
+          if (std::isfinite(sat)) saturated.add(sat);
+        });
     store(episode, tester, {buffer.get()});
     ++episodes;
 
@@ -471,6 +482,8 @@ struct Trainer::Impl {
     log->log(step, "imitation/test_return", test.episode_return);
     log->log(step, "imitation/test_length", static_cast<double>(test.length));
     log->log(step, "imitation/policy_return", policy_return);
+    if (ess.count) log->log(step, "imitation/weight_ess", ess.mean());
+    if (saturated.count) log->log(step, "imitation/saturated_weight", saturated.mean());
     if (std::isfinite(expert_return)) log->log(step, "imitation/expert_return", expert_return);
     // Not train/agent_steps: that tag counts an online run's progress (the sweep engine reads it).
     log->log(step, "imitation/agent_steps", static_cast<double>(agent_steps));

@@ -121,6 +121,14 @@ TEST(LearningLoops, HybridImitationLogsItsTagsAndResumesExactly) {
     EXPECT_EQ(tags.at(tag).size(), 3u) << tag;
   }
   EXPECT_FALSE(tags.count("loss/critic"));  // no SAC in imitation
+  // The planner's weight diagnostics of each test episode: an effective sample size in [1, K].
+  ASSERT_TRUE(tags.count("imitation/weight_ess"));
+  ASSERT_TRUE(tags.count("imitation/saturated_weight"));
+  EXPECT_EQ(tags.at("imitation/weight_ess").size(), 3u);
+  for (double ess : tags.at("imitation/weight_ess")) {
+    EXPECT_GE(ess, 1.0 - 1e-9);
+    EXPECT_LE(ess, 20.0 + 1e-9);  // K = 20 on the pendulum (experiments/configs/pendulum.yaml)
+  }
   // The test episode acts with the hybrid, not the policy alone: the two returns differ.
   EXPECT_NE(tags.at("imitation/test_return"), tags.at("imitation/policy_return"));
   EXPECT_TRUE(fs::exists(dir + "/final.pt"));
@@ -149,7 +157,8 @@ TEST(LearningLoops, BehaviourCloningAndTheDeterministicVariantRun) {
   auto tags = by_tag(bc + "/scalars.csv");
   EXPECT_EQ(tags.at("imitation/demonstrations").size(), 3u);
   EXPECT_EQ(tags.at("loss/bc").size(), 3u);
-  EXPECT_FALSE(tags.count("loss/dynamics"));  // behaviour cloning alone trains no models
+  EXPECT_FALSE(tags.count("loss/dynamics"));         // behaviour cloning alone trains no models
+  EXPECT_FALSE(tags.count("imitation/weight_ess"));  // and has no planner
   // Its test episode is the policy alone.
   EXPECT_EQ(tags.at("imitation/test_return"), tags.at("imitation/policy_return"));
   // More demonstrations fit the expert better on the data seen: the BC loss of the last iteration is below
