@@ -8,14 +8,26 @@
 namespace hlt {
 
 BehaviourCloning::BehaviourCloning(GaussianPolicy policy, const BehaviourCloningOptions& options)
-    : policy_(std::move(policy)) {
+    : policy_(std::move(policy)), censor_saturated_(options.censor_saturated) {
   optimizer_ = std::make_unique<FlatAdam>(policy_->parameters(), FlatAdamOptions{options.lr});
 }
 
 at::Tensor BehaviourCloning::nll(const at::Tensor& states, const at::Tensor& actions) {
   check(states.dim() == 2 && actions.dim() == 2 && states.size(0) == actions.size(0) && states.size(0) > 0,
         "behaviour cloning needs [B, n] states and [B, m] actions");
-  return -policy_->log_prob(states, actions).mean();
+  if (!censor_saturated_) return -policy_->log_prob(states, actions).mean();
+  auto [mean, log_std] = policy_->forward(states);
+  const at::Tensor saturated = actions.abs() >= kSaturatedAt;
+  const at::Tensor a = actions.clamp(-1.0 + kTanhEpsilon, 1.0 - kTanhEpsilon);
+  const at::Tensor u = torch::atanh(a);
+  const at::Tensor z = (u - mean) * torch::exp(-log_std);
+  const at::Tensor density =
+      -0.5 * z.square() - log_std - 0.5 * std::log(2.0 * M_PI) - torch::log(1.0 - a.square() + kTanhEpsilon);
+  // At +1: P(u >= c) = Phi((mu - c) / sigma); at -1: P(u <= -c) = Phi((-c - mu) / sigma).
+  const at::Tensor sign = torch::sign(actions);
+  const at::Tensor tail =
+      torch::special::log_ndtr((sign * mean - std::atanh(kCensorLevel)) * torch::exp(-log_std));
+  return -torch::where(saturated, tail, density).sum(-1).mean();
 }
 
 double BehaviourCloning::loss(const at::Tensor& states, const at::Tensor& actions) {

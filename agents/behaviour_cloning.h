@@ -1,6 +1,12 @@
 // hlt::BehaviourCloning: trains the Gaussian policy on demonstrations by maximum likelihood, minimising
 // -E[log pi(a_expert | s)] with Adam (paper appendix: lr 0.01). The policy is shared with the controllers
 // that act with it, as SAC's is.
+//
+// An expert's action at the bound of the action range was clipped there: the expert asked for at least
+// that much. With `censor_saturated` such a component is a censored observation and contributes
+// log P(tanh(u) >= kCensorLevel) = log Phi((mu - atanh(kCensorLevel)) / sigma) (mirrored at -1), not the
+// density at atanh(1 - 1e-6) = 7.25, a target far outside the others that the policy's mean and
+// standard deviation are otherwise bent to reach (the Ant expert's actions are 38 % at the bound).
 #pragma once
 
 #include <memory>
@@ -15,7 +21,13 @@ namespace hlt {
 
 struct BehaviourCloningOptions {
   double lr = 0.01;
+  bool censor_saturated = true;
 };
+
+// An action component with |a| >= kSaturatedAt is at the bound; as a censored observation it says
+// |tanh(u)| >= kCensorLevel.
+inline constexpr double kSaturatedAt = 1.0 - 1e-6;
+inline constexpr double kCensorLevel = 0.999;
 
 class BehaviourCloning : public Learner {
  public:
@@ -37,6 +49,7 @@ class BehaviourCloning : public Learner {
  private:
   at::Tensor nll(const at::Tensor& states, const at::Tensor& actions);
   GaussianPolicy policy_;
+  bool censor_saturated_;
   std::unique_ptr<FlatAdam> optimizer_;
 };
 

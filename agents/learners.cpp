@@ -113,6 +113,7 @@ NamedLosses BehaviourCloning::train(const Batch& batch) {
 std::unique_ptr<Learner> make_bc_learner(LearnerContext& context) {
   BehaviourCloningOptions o;
   o.lr = context.config.get_double("bc.lr");
+  o.censor_saturated = context.config.get_bool("bc.censor_saturated");
   return std::make_unique<BehaviourCloning>(config_policy(context), o);
 }
 

@@ -56,6 +56,9 @@ Config make_train_config() {
                 "imitation methods: also run the demonstrator from each test episode's start and log "
                 "imitation/expert_return (the expert's level in the same episode)")
       .add_double("bc.lr", 0.01, "Adam learning rate of behaviour cloning", 1e-8, 1.0)
+      .add_bool("bc.censor_saturated", true,
+                "an expert action at the bound of the range is a censored observation (the expert asked for "
+                "at least that much), not a density at the bound")
       .add_int("model.hidden", 200, "dynamics model hidden width", 1, 100000)
       .add_string("model.activation", "sin", "dynamics model hidden activation", {"sin", "relu"})
       .add_int("model.reward_hidden", 200, "reward model hidden width (two layers)", 1, 100000)

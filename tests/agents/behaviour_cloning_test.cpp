@@ -1,5 +1,5 @@
-// Behaviour cloning: its loss against a hand computation of the tanh-Gaussian NLL, and learning a known
-// expert from its demonstrations.
+// Behaviour cloning: its loss against a hand computation of the tanh-Gaussian NLL (with actions at the
+// bound as censored observations), and learning known experts from their demonstrations.
 #include "agents/behaviour_cloning.h"
 
 #include <gtest/gtest.h>
@@ -34,6 +34,69 @@ TEST(BehaviourCloning, LossIsTheHandComputedNegativeLogLikelihood) {
   EXPECT_NEAR(bc.loss(states, actions), expected, 1e-5);
   EXPECT_NEAR(bc.update(states, actions), expected, 1e-5);
   EXPECT_LT(bc.loss(states, actions), expected);  // the step lowered it
+}
+
+// The policy of the test above (mu = 0.2, log std = -0.5 everywhere), one action dimension.
+GaussianPolicy constant_policy() {
+  GaussianPolicy policy(GaussianPolicyOptions{1, 1, {2}, Activation::kRelu});
+  torch::NoGradGuard g;
+  for (auto& p : policy->parameters())
+    p.zero_();
+  policy->mean_layers[1]->as<torch::nn::Linear>()->bias.fill_(0.2);
+  policy->log_std_layers[1]->as<torch::nn::Linear>()->bias.fill_(-0.5);
+  return policy;
+}
+
+double log_normal_cdf(double x) {
+  return std::log(0.5 * std::erfc(-x / std::sqrt(2.0)));
+}
+
+TEST(BehaviourCloning, ActionsAtTheBoundAreCensoredObservations) {
+  const auto states = torch::zeros({3, 1});
+  const auto actions = torch::tensor({{0.5f}, {1.0f}, {-1.0f}});
+  const double mu = 0.2, sigma = std::exp(-0.5), c = std::atanh(kCensorLevel);
+  const double u = std::atanh(0.5);
+  const double inside = -0.5 * std::pow((u - mu) / sigma, 2) - std::log(sigma) - 0.5 * std::log(2 * M_PI) -
+                        std::log(1 - 0.25 + 1e-6);
+  // +1: log P(u >= c) = log Phi((mu - c) / sigma); -1: log P(u <= -c) = log Phi((-c - mu) / sigma).
+  const double expected =
+      -(inside + log_normal_cdf((mu - c) / sigma) + log_normal_cdf((-c - mu) / sigma)) / 3;
+  BehaviourCloning censored(constant_policy(), BehaviourCloningOptions{});
+  EXPECT_NEAR(censored.loss(states, actions), expected, 1e-4);
+
+  // Without censoring, +-1 are densities at atanh(+-(1 - 1e-6)), far out in the tail: a much larger loss.
+  BehaviourCloningOptions plain;
+  plain.censor_saturated = false;
+  BehaviourCloning density(constant_policy(), plain);
+  double expected_plain = -inside / 3;
+  for (double a : {1.0 - 1e-6, -(1.0 - 1e-6)}) {
+    const double v = std::atanh(a);
+    expected_plain -= (-0.5 * std::pow((v - mu) / sigma, 2) - std::log(sigma) - 0.5 * std::log(2 * M_PI) -
+                       std::log(1 - a * a + 1e-6)) /
+                      3;
+  }
+  EXPECT_NEAR(density.loss(states, actions), expected_plain, 1e-2 * std::abs(expected_plain));
+  EXPECT_GT(density.loss(states, actions), censored.loss(states, actions) + 10);
+}
+
+TEST(BehaviourCloning, LearnsAClippedExpert) {
+  // An expert whose first action is clipped at the bound on two thirds of the states: the censored fit
+  // acts at the bound where the expert did and learns the unclipped second action.
+  torch::manual_seed(2);
+  GaussianPolicy policy(GaussianPolicyOptions{1, 2, {32}, Activation::kRelu});
+  BehaviourCloning bc(policy, BehaviourCloningOptions{0.01});
+  const auto states = torch::rand({512, 1}) * 2 - 1;
+  const auto first = (states * 3).clamp(-1, 1);  // |3 s| > 1 on two thirds of the states: clipped
+  const auto second = torch::tanh(0.5 * states);
+  const auto actions = torch::cat({first, second}, 1);
+  for (int i = 0; i < 1500; ++i)
+    bc.update(states, actions);
+  const auto test = torch::linspace(-1, 1, 41).unsqueeze(1);
+  const auto a = policy->mean_action(test);
+  EXPECT_LT((a.select(1, 1) - torch::tanh(0.5 * test.squeeze(1))).abs().max().item<double>(), 0.05);
+  const auto clipped = (test.squeeze(1) * 3).abs() > 1.2;
+  const auto at_bound = (a.select(1, 0) * torch::sign(test.squeeze(1))).masked_select(clipped);
+  EXPECT_GT(at_bound.min().item<double>(), 0.95);
 }
 
 TEST(BehaviourCloning, LearnsALinearExpertFromItsDemonstrations) {
