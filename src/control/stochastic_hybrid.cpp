@@ -18,6 +18,8 @@ StochasticHybrid::StochasticHybrid(std::shared_ptr<ActionSampler> sampler, Dynam
   check(sampler_ != nullptr, "{}: needs an action sampler", name_);
   check(options.horizon >= 1 && options.samples >= 1, "{}: horizon and samples must be >= 1", name_);
   check(options.lambda > 0, "{}: lambda must be > 0, got {}", name_, options.lambda);
+  check(options.min_ess >= 0 && options.min_ess <= static_cast<double>(options.samples),
+        "{}: min_ess must be in [0, samples = {}], got {}", name_, options.samples, options.min_ess);
   reset();
 }
 
@@ -86,11 +88,12 @@ at::Tensor StochasticHybrid::compute_action(const at::Tensor& state) {
       J.row(t) += J.row(t + 1);
     // log w = J / lambda (+ log p(v)); normalise in log space: subtracting each step's max keeps exp() in
     // range.
-    RowMatrix<T> log_w = J / T(options_.lambda);
-    if (options_.density_in_weights) log_w += row_map<T>(log_density_);
+    const RowMatrix<T> scaled = J / T(options_.lambda);
+    RowMatrix<T> density;
+    if (options_.density_in_weights) density = row_map<T>(log_density_);
     auto w = row_map<T>(weights_);
-    w = ((log_w.colwise() - log_w.rowwise().maxCoeff()).array().exp() + T(options_.weight_floor)).matrix();
-    w.array().colwise() /= w.rowwise().sum().array();
+    w = planner_weights<T>(scaled, options_.density_in_weights ? &density : nullptr, options_.weight_floor,
+                           options_.min_ess);
     // a_t += sum_k w_t^k (v_t^k - a_t)
     auto plan = row_map<T>(plan_);
     for (int64_t t = 0; t < H; ++t) {

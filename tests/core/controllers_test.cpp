@@ -9,6 +9,7 @@
 #include "hlt/control/deterministic_hybrid.h"
 #include "hlt/control/policy_controller.h"
 #include "hlt/control/stochastic_hybrid.h"
+#include "hlt/util/error.h"
 #include "support/gradient_check.h"
 
 namespace hlt {
@@ -474,6 +475,54 @@ TEST(StochasticHybrid, UniformWeightsHaveFullEffectiveSampleSize) {
                      StochasticHybridOptions{3, 25, 1e12, false, 0.0}, md.policy);
   h.act(torch::randn({2}, torch::kFloat64));
   EXPECT_NEAR(h.diagnostics().weight_ess, 25.0, 1e-9);
+}
+
+TEST(StochasticHybrid, MinimumEffectiveSampleSizeTempersOnlyTheRowsThatNeedIt) {
+  // Row 0: returns far apart (one sample takes all the weight); row 1: equal returns (already uniform).
+  RowMatrix<double> scaled(2, 4);
+  scaled << 0, 10, 20, 30, 5, 5, 5, 5;
+  RowMatrix<double> density(2, 4);
+  density << 0, -1, 0, -1, 0, 0, 0, 0;
+  auto ess = [](const RowMatrix<double>& w, int t) { return 1.0 / w.row(t).squaredNorm(); };
+  Eigen::VectorXd beta;
+  const RowMatrix<double> paper = planner_weights<double>(scaled, &density, 0.0, 0.0, &beta);
+  EXPECT_LT(ess(paper, 0), 1.001);  // the paper's rule: nearly all weight on the best sample
+  EXPECT_EQ(beta(0), 1.0);
+  const RowMatrix<double> w = planner_weights<double>(scaled, &density, 0.0, 2.5, &beta);
+  EXPECT_NEAR(ess(w, 0), 2.5, 1e-6);  // tempered to the floor, no further
+  EXPECT_GT(beta(0), 0.0);
+  EXPECT_LT(beta(0), 1.0);
+  // The tempered row is the paper's formula at that beta, by hand.
+  for (int k = 0; k < 4; ++k) {
+    double z = 0;
+    for (int j = 0; j < 4; ++j)
+      z += std::exp(beta(0) * (scaled(0, j) - scaled(0, k)) + density(0, j) - density(0, k));
+    EXPECT_NEAR(w(0, k), 1.0 / z, 1e-9);
+  }
+  EXPECT_EQ(beta(1), 1.0);  // row 1 already had ESS 4: untouched
+  EXPECT_NEAR(ess(w, 1), 4.0, 1e-9);
+  EXPECT_TRUE(w.row(1).isApprox(paper.row(1)));
+
+  // In the controller: its step-0 diagnostics reach the floor that the paper's rule falls below.
+  torch::manual_seed(6);
+  Models md = random_models(2, 1, 32);
+  StochasticHybridOptions o{3, 25, 1e-4, false, 0.0};
+  StochasticHybrid cold(std::make_shared<PolicySampler>(md.policy, false), md.dynamics, md.reward, o,
+                        md.policy);
+  const auto s0 = torch::randn({2}, torch::kFloat64);
+  torch::manual_seed(7);
+  cold.act(s0);
+  EXPECT_LT(cold.diagnostics().weight_ess, 2.0);
+  o.min_ess = 8;
+  StochasticHybrid floored(std::make_shared<PolicySampler>(md.policy, false), md.dynamics, md.reward, o,
+                           md.policy);
+  torch::manual_seed(7);
+  floored.act(s0);
+  EXPECT_NEAR(floored.diagnostics().weight_ess, 8.0, 1e-3);
+  o.min_ess = 26;  // more than K: refused
+  EXPECT_THROW(StochasticHybrid(std::make_shared<PolicySampler>(md.policy, false), md.dynamics, md.reward, o,
+                                md.policy),
+               Error);
 }
 
 TEST(StochasticHybrid, InfiniteTemperatureGivesMeanPerturbationAndPlanShifts) {

@@ -25,7 +25,49 @@ struct StochasticHybridOptions {
   bool density_in_weights = true;
   // Added to every normalised-by-max weight before normalising (the authors' 1e-5): keeps weights positive.
   double weight_floor = 1e-5;
+  // If > 0, a time step whose weights would have an effective sample size (1 / sum w^2) below this has
+  // its returns' term tempered, J / lambda -> beta J / lambda with the largest beta in [0, 1] that reaches
+  // it. 0 (the default) is the paper's rule. Why: where the learned models cannot yet rank the samples,
+  // the paper's weights still fall on the one sample the models overrate most, and the planner acts with
+  // a single draw of the policy (measured on the Ant imitation task: docs/RESULTS.md).
+  double min_ess = 0;
 };
+
+// The planner's weights [H, K] from scaled returns J / lambda [H, K] and, if given, the samples'
+// log-densities [H, K]: per row w ~ exp(beta J / lambda + log p) + floor (after subtracting the row's max),
+// normalised, with beta = 1 unless min_ess asks for less (found by bisection, 40 halvings). Returns the
+// weights; `betas` (if given) receives each row's beta.
+template <typename T>
+RowMatrix<T> planner_weights(const RowMatrix<T>& scaled_returns, const RowMatrix<T>* log_density,
+                             double floor, double min_ess,
+                             Eigen::Matrix<T, Eigen::Dynamic, 1>* betas = nullptr) {
+  const Eigen::Index H = scaled_returns.rows();
+  RowMatrix<T> w(H, scaled_returns.cols());
+  if (betas) betas->setOnes(H);
+  auto row_weights = [&](Eigen::Index t, T beta) {
+    Eigen::Matrix<T, 1, Eigen::Dynamic> l = beta * scaled_returns.row(t);
+    if (log_density) l += log_density->row(t);
+    Eigen::Matrix<T, 1, Eigen::Dynamic> e = ((l.array() - l.maxCoeff()).exp() + T(floor)).matrix();
+    e /= e.sum();
+    return e;
+  };
+  auto ess = [](const Eigen::Matrix<T, 1, Eigen::Dynamic>& e) {
+    return 1.0 / static_cast<double>(e.squaredNorm());
+  };
+  for (Eigen::Index t = 0; t < H; ++t) {
+    w.row(t) = row_weights(t, T(1));
+    if (min_ess <= 0 || ess(w.row(t)) >= min_ess) continue;
+    // The effective sample size grows as beta falls; keep the largest beta that still reaches min_ess.
+    T lo = 0, hi = 1;
+    for (int i = 0; i < 40; ++i) {
+      const T mid = (lo + hi) / 2;
+      (ess(row_weights(t, mid)) >= min_ess ? lo : hi) = mid;
+    }
+    w.row(t) = row_weights(t, lo);
+    if (betas) (*betas)(t) = lo;
+  }
+  return w;
+}
 
 class StochasticHybrid : public Controller {
  public:
