@@ -37,7 +37,7 @@ StochasticHybridOptions stochastic_options(const Config& c) {
   o.samples = c.get_int("planner.samples");
   o.lambda = c.get_double("planner.lambda");
   o.density_in_weights = c.get_bool("planner.density_in_weights");
-  o.min_ess = c.get_double("planner.min_ess");
+  o.min_ess = c.get_double("planner.min_ess_fraction") * static_cast<double>(o.samples);
   return o;
 }
 

@@ -91,10 +91,10 @@ Config make_train_config() {
           "with plan samples: weight every sample by exp(J / lambda) pi(v | s), the policy's density at "
           "the sample's state (Theorem 2's bound to the policy), instead of exp(J / lambda) alone")
       .add_bool("planner.density_in_weights", true, "include log p(v) in the stochastic planner's weights")
-      .add_double("planner.min_ess", 0.0,
+      .add_double("planner.min_ess_fraction", 0.0,
                   "if > 0, temper a step's J / lambda so its weights' effective sample size is at least this "
-                  "(0: the paper's weights)",
-                  0.0, 1e9)
+                  "fraction of planner.samples (0: the paper's weights)",
+                  0.0, 1.0)
       .add_bool("planner.density_tanh_correction", false,
                 "hybrid-stochastic: p(v) is the density of the squashed action tanh(u) (adds -log(1 - v^2)) "
                 "instead of the policy's Gaussian N(mu, Sigma) at u = atanh(v) (false: the authors' choice)")

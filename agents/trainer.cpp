@@ -601,7 +601,8 @@ const std::string& Trainer::run_dir() const {
   return impl_->dir;
 }
 Trainer::Summary Trainer::summary() const {
-  return {impl_->agent_steps, impl_->env_steps, impl_->last_eval, impl_->last_return};
+  return {impl_->agent_steps, impl_->env_steps, impl_->last_eval, impl_->last_return,
+          impl_->imitation ? impl_->iterations : -1};
 }
 
 std::unique_ptr<Trainer> Trainer::create(const Config& config, const std::string& run_dir) {

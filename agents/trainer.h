@@ -36,6 +36,7 @@ class Trainer {
   struct Summary {
     int64_t agent_steps = 0, env_steps = 0;
     double last_eval = 0, last_return = 0;  // NaN if none in this session
+    int64_t iterations = -1;                // demonstrations so far (imitation loop), -1 for the online loop
   };
   Summary summary() const;
 

@@ -264,6 +264,11 @@ def logged_agent_steps(run):
     return logged_progress(run)[1]
 
 
+def unit_of(run):
+    """The unit of the run's budget as its log counts it ('agent steps' until it has logged anything)."""
+    return "iterations" if logged_progress(run)[0] == "imitation/demonstrations" else "agent steps"
+
+
 def configured_budget(run, config):
     """The budget in the run's config.yaml, in the unit its log counts progress in."""
     tag, _ = logged_progress(run)
@@ -318,7 +323,7 @@ def run_state(run):
         config = run_config(run) or {}
         trained = configured_budget(run, config)
         if isinstance(trained, int) and trained < run.steps:
-            return "partial", "finished at %d agent steps; run resumes it to %d" % (trained, run.steps)
+            return "partial", "finished at %d %s; run resumes it to %d" % (trained, unit_of(run), run.steps)
         return "done", ""
     failure = failure_of(run)
     if failure:
@@ -430,7 +435,7 @@ def run_one(run, train, stopper, lock_wait=0.0):
             return False, "still being written by another process (%s) after %.0f s" % (detail, lock_wait)
         return True, "running elsewhere (%s; left alone)" % detail
     if state == "done":
-        return True, "already done (%d agent steps)" % max(logged_agent_steps(run), run.steps)
+        return True, "already done (%d %s)" % (max(logged_agent_steps(run), run.steps), unit_of(run))
     if stopper.stopping.is_set():
         return True, "not started (interrupted)"
 
@@ -446,12 +451,12 @@ def run_one(run, train, stopper, lock_wait=0.0):
             every = checkpoint_every(run)
             progress = logged_agent_steps(run)
             if every is None or progress > every:
-                return False, ("has no checkpoint.pt but logged %d agent steps: not resumable, not restarted "
-                               "(move %s away to start it afresh)" % (progress, run.dir))
+                return False, ("has no checkpoint.pt but logged %d %s: not resumable, not restarted "
+                               "(move %s away to start it afresh)" % (progress, unit_of(run), run.dir))
             shutil.rmtree(run.dir)
             action = "restarted (killed before its first checkpoint)"
         else:
-            action = "resumed (%s at %d agent steps)" % (state, logged_agent_steps(run))
+            action = "resumed (%s at %d %s)" % (state, logged_agent_steps(run), unit_of(run))
 
     if os.path.exists(os.path.join(run.dir, "config.yaml")):
         cmd = [train, "--resume", run.dir, "--steps", str(run.steps), "--no-progress"]
@@ -731,7 +736,7 @@ def note_job(slurm_dir, job, indices, stamp):
 def status_report(sweep, out, runs):
     queued = queued_tasks(out)
     width = max(len(r.name) for r in runs)
-    lines = ["%-*s  %-8s  %s" % (width, "run", "state", "agent steps")]
+    lines = ["%-*s  %-8s  %s" % (width, "run", "state", "progress (agent steps; iterations for imitation)")]
     counts = {}
     for run in runs:
         state, detail = run_state(run)

@@ -66,11 +66,20 @@ void print_summary(const Trainer& trainer) {
   auto value = [](double x, const char* none) {
     return std::isnan(x) ? std::string(none) : fmt::format("{:.1f}", x);
   };
-  fmt::print(
-      "done: {} agent steps ({} environment steps); last evaluation return {}, last training episode "
-      "return {}\n",
-      s.agent_steps, s.env_steps, value(s.last_eval, "none (no evaluation in this session)"),
-      value(s.last_return, "none (no episode ended in this session)"));
+  if (s.iterations >= 0) {
+    // An imitation run counts iterations; its agent steps are the test episodes'.
+    fmt::print(
+        "done: {} iterations ({} demonstrations; {} agent steps, {} environment steps); last test "
+        "return {}\n",
+        s.iterations, s.iterations, s.agent_steps, s.env_steps,
+        value(s.last_eval, "none (no iteration in this session)"));
+  } else {
+    fmt::print(
+        "done: {} agent steps ({} environment steps); last evaluation return {}, last training episode "
+        "return {}\n",
+        s.agent_steps, s.env_steps, value(s.last_eval, "none (no evaluation in this session)"),
+        value(s.last_return, "none (no episode ended in this session)"));
+  }
   fmt::print("results in {}/ ({}, {}, {}, {})\n", trainer.run_dir(), Trainer::kLogFile, Trainer::kConfigFile,
              Trainer::kFinalFile, Trainer::kCheckpointFile);
 }

@@ -112,6 +112,9 @@ TEST(LearningLoops, HybridImitationLogsItsTagsAndResumesExactly) {
   const std::string args = imitation_args("hybrid-imitation", expert);
   Result r = run(kTrain + args + " --out " + dir);
   ASSERT_EQ(r.code, 0) << r.output;
+  // The closing summary counts the budget's unit: iterations (3 test episodes of 30 agent steps).
+  EXPECT_NE(r.output.find("done: 3 iterations (3 demonstrations; 90 agent steps"), std::string::npos)
+      << r.output;
   const auto tags = by_tag(dir + "/scalars.csv");
   EXPECT_EQ(tags.at("imitation/demonstrations"), (std::vector<double>{1, 2, 3}));
   for (const char* tag : {"imitation/test_return", "imitation/policy_return", "imitation/expert_return",

@@ -42,8 +42,13 @@ RowMatrix<T> planner_weights(const RowMatrix<T>& scaled_returns, const RowMatrix
                              double floor, double min_ess,
                              Eigen::Matrix<T, Eigen::Dynamic, 1>* betas = nullptr) {
   const Eigen::Index H = scaled_returns.rows();
-  RowMatrix<T> w(H, scaled_returns.cols());
   if (betas) betas->setOnes(H);
+  // The paper's weights, all rows at once (this exact expression: the methods' logs are bit-exact).
+  RowMatrix<T> log_w = scaled_returns;
+  if (log_density) log_w += *log_density;
+  RowMatrix<T> w = ((log_w.colwise() - log_w.rowwise().maxCoeff()).array().exp() + T(floor)).matrix();
+  w.array().colwise() /= w.rowwise().sum().array();
+  if (min_ess <= 0) return w;
   auto row_weights = [&](Eigen::Index t, T beta) {
     Eigen::Matrix<T, 1, Eigen::Dynamic> l = beta * scaled_returns.row(t);
     if (log_density) l += log_density->row(t);
@@ -55,8 +60,7 @@ RowMatrix<T> planner_weights(const RowMatrix<T>& scaled_returns, const RowMatrix
     return 1.0 / static_cast<double>(e.squaredNorm());
   };
   for (Eigen::Index t = 0; t < H; ++t) {
-    w.row(t) = row_weights(t, T(1));
-    if (min_ess <= 0 || ess(w.row(t)) >= min_ess) continue;
+    if (ess(w.row(t)) >= min_ess) continue;
     // The effective sample size grows as beta falls; keep the largest beta that still reaches min_ess.
     T lo = 0, hi = 1;
     for (int i = 0; i < 40; ++i) {
