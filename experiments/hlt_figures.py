@@ -364,7 +364,15 @@ def imitation_rows(groups, reg):
     out = {}
     for env in envs:
         mine = sorted((g for g in imitation if g.env == env), key=lambda g: (reg.method_key(g.method), g.index))
-        expert = [c for g in mine for c in (imitation_curve(r, IMITATION_EXPERT) for r in g.runs) if c is not None]
+        # The expert runs from each seed's test start states, which every method of that seed shares: one
+        # curve per seed (the first run's), not one per run.
+        by_seed = {}
+        for g in mine:
+            for r in g.runs:
+                c = imitation_curve(r, IMITATION_EXPERT)
+                if c is not None and r.seed not in by_seed:
+                    by_seed[r.seed] = c
+        expert = [by_seed[k] for k in sorted(by_seed)]
         rows = [("expert", None, "--", expert)] if expert else []
         for group in mine:
             tests = [imitation_curve(r, IMITATION_TEST) for r in group.runs]
@@ -633,7 +641,9 @@ def main():
             for srun in rep["runs"]:
                 run = by_dir.get(os.path.abspath(srun.dir))
                 if run is not None:
-                    logged = run.scalars.get("train/agent_steps", ([], []))[1]
+                    # progress in the budget's unit: agent steps, or iterations for an imitation run
+                    tag = IMITATION_X if IMITATION_X in run.scalars else "train/agent_steps"
+                    logged = run.scalars.get(tag, ([], []))[1]
                     if not logged or logged[-1] < srun.steps:
                         rep["short"].append(srun)
         groups = make_groups(runs, args.pool_key)
