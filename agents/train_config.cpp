@@ -55,6 +55,10 @@ Config make_train_config() {
       .add_bool("imitation.expert_episode", true,
                 "imitation methods: also run the demonstrator from each test episode's start and log "
                 "imitation/expert_return (the expert's level in the same episode)")
+      .add_int("imitation.eval_episodes", 0,
+               "imitation methods: extra test episodes of the method's controller after each iteration, from "
+               "fixed start states and not stored (imitation/eval_return_mean, imitation/eval_success_rate)",
+               0, 100000)
       .add_double("bc.lr", 0.01, "Adam learning rate of behaviour cloning", 1e-8, 1.0)
       .add_bool("bc.censor_saturated", true,
                 "an expert action at the bound of the range is a censored observation (the expert asked for "

@@ -46,6 +46,7 @@ enum Stream : uint64_t {
   kDemonstrationReplay = 64,
   kDemonstrationEpisode = 65,
   kDemonstrator = 66,
+  kImitationEval = 67,
 };
 
 // The header of config.yaml: what the run's numbers depend on besides its settings. The same seed gives
@@ -346,6 +347,7 @@ struct Trainer::Impl {
     log->log(env_steps, "train/episodes", static_cast<double>(episodes));
     const int64_t fallbacks = controller->diagnostics().fallbacks - ep_fallbacks_start;
     log->log(env_steps, "train/fallbacks", static_cast<double>(fallbacks));
+    if (const auto ok = env->episode_success()) log->log(env_steps, "train/success", *ok ? 1.0 : 0.0);
     log_if("train/mode_insertion_gradient", ep_mig);
     log_if("train/weight_ess", ep_ess);
     log_if("train/saturated_weight", ep_saturated);
@@ -380,6 +382,7 @@ struct Trainer::Impl {
       const std::string prefix = label.empty() ? "eval/" : "eval/" + label + "_";
       log->log(env_steps, prefix + "return_mean", summary.mean_return);
       log->log(env_steps, prefix + "return_std", summary.std_return);
+      if (summary.success_rate) log->log(env_steps, prefix + "success_rate", *summary.success_rate);
       if (label.empty()) last_eval = summary.mean_return;
     }
     ++evaluations;
@@ -461,17 +464,32 @@ struct Trainer::Impl {
     store(episode, tester, {buffer.get()});
     ++episodes;
 
-    double policy_return = test.episode_return;  // bc: the test episode is the policy alone
+    EpisodeStats policy_alone = test;  // bc: the test episode is the policy alone
     if (method->controller != "policy") {
       auto alone = make_controller("policy", models, config, /*evaluation=*/true);
       ControllerPolicy p(*alone);
-      policy_return = run_episode(*eval_env, p, start, {}, {}, test_steps).episode_return;
+      policy_alone = run_episode(*eval_env, p, start, {}, {}, test_steps);
     }
+    const double policy_return = policy_alone.episode_return;
     double expert_return = std::nan("");
+    std::optional<bool> expert_success;
     if (config.get_bool("imitation.expert_episode")) {
       auto expert = make_fixed_policy(expert_spec, *eval_env, derive_seed(seed, kDemonstrator) ^ ~i,
                                       "imitation.expert");
-      expert_return = run_episode(*eval_env, *expert, start, {}, {}, test_steps).episode_return;
+      const EpisodeStats e = run_episode(*eval_env, *expert, start, {}, {}, test_steps);
+      expert_return = e.episode_return;
+      expert_success = e.success;
+    }
+    // Extra test episodes of the method's controller from fixed start states (not stored): a success rate
+    // per demonstration count needs more than the one test episode.
+    std::vector<EpisodeStats> extra;
+    const int64_t eval_episodes = config.get_int("imitation.eval_episodes");
+    if (eval_episodes > 0) {
+      ControllerPolicy p(*controller, [this](Controller& c) { tell_interactions(c); });
+      for (int64_t e = 0; e < eval_episodes; ++e)
+        extra.push_back(run_episode(
+            *eval_env, p, derive_seed(seed, kImitationEval) ^ static_cast<uint64_t>(e), {},
+            [&] { p.reset(); }, test_steps));
     }
 
     ++iterations;
@@ -485,6 +503,18 @@ struct Trainer::Impl {
     if (ess.count) log->log(step, "imitation/weight_ess", ess.mean());
     if (saturated.count) log->log(step, "imitation/saturated_weight", saturated.mean());
     if (std::isfinite(expert_return)) log->log(step, "imitation/expert_return", expert_return);
+    auto log_success = [&](const char* tag, const std::optional<bool>& ok) {
+      if (ok) log->log(step, tag, *ok ? 1.0 : 0.0);
+    };
+    log_success("imitation/test_success", test.success);
+    log_success("imitation/policy_success", policy_alone.success);
+    log_success("imitation/expert_success", expert_success);
+    if (!extra.empty()) {
+      const ReturnSummary s = summarize(extra);
+      log->log(step, "imitation/eval_return_mean", s.mean_return);
+      log->log(step, "imitation/eval_return_std", s.std_return);
+      if (s.success_rate) log->log(step, "imitation/eval_success_rate", *s.success_rate);
+    }
     // Not train/agent_steps: that tag counts an online run's progress (the sweep engine reads it).
     log->log(step, "imitation/agent_steps", static_cast<double>(agent_steps));
     log->log(step, "imitation/env_steps", static_cast<double>(env_steps));

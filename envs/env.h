@@ -63,6 +63,10 @@ class Env {
   // An image of the current state (BGR, 8-bit).
   virtual cv::Mat render(int width = 480, int height = 360) const = 0;
 
+  // Tasks with a success criterion (the robot tasks) say whether it holds in the current state; the
+  // episode loop asks at an episode's end. Others have none (nullopt).
+  virtual std::optional<bool> episode_success() const { return std::nullopt; }
+
  protected:
   // Draws an initial state from `rng` and returns the first observation.
   virtual Eigen::VectorXd reset_impl(std::mt19937_64& rng) = 0;
@@ -93,6 +97,7 @@ class FrameSkip : public Env {
   int max_episode_steps() const override { return (inner_->max_episode_steps() + k_ - 1) / k_; }
   double dt() const override { return inner_->dt() * k_; }
   cv::Mat render(int width, int height) const override { return inner_->render(width, height); }
+  std::optional<bool> episode_success() const override { return inner_->episode_success(); }
   int frame_skip() const { return k_; }
   // Simulator steps taken in the current episode.
   int inner_elapsed_steps() const { return inner_->elapsed_steps(); }

@@ -107,6 +107,7 @@ EpisodeStats run_episode(Env& env, PolicySource& policy, std::optional<uint64_t>
       stats.terminated = r.terminated;
       stats.truncated = r.truncated;
       stats.failure = r.failure;
+      stats.success = env.episode_success();
       return stats;
     }
     obs = r.observation;
@@ -125,6 +126,13 @@ ReturnSummary summarize(const std::vector<EpisodeStats>& episodes) {
   for (const auto& e : episodes)
     var += (e.episode_return - s.mean_return) * (e.episode_return - s.mean_return) / n;
   s.std_return = std::sqrt(var);
+  int judged = 0, succeeded = 0;
+  for (const auto& e : episodes) {
+    if (!e.success) continue;
+    ++judged;
+    succeeded += *e.success ? 1 : 0;
+  }
+  if (judged > 0) s.success_rate = static_cast<double>(succeeded) / judged;
   return s;
 }
 

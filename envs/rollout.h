@@ -36,7 +36,8 @@ struct EpisodeStats {
   int length = 0;
   bool terminated = false;
   bool truncated = false;
-  std::string failure;  // set when the simulation failed
+  std::string failure;          // set when the simulation failed
+  std::optional<bool> success;  // the task's success criterion at the episode's end, if it has one
 };
 
 // One step of an episode as the loop saw it: the observation the action was chosen from, the action and the
@@ -59,6 +60,7 @@ struct ReturnSummary {
   double mean_return = 0.0;
   double std_return = 0.0;  // population standard deviation
   double mean_length = 0.0;
+  std::optional<double> success_rate;  // over the episodes whose task has a success criterion
 };
 ReturnSummary summarize(const std::vector<EpisodeStats>& episodes);
 

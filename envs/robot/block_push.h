@@ -36,6 +36,7 @@ class BlockPush : public Env {
   static double reward(const Eigen::VectorXd& observation, const Eigen::Vector2d& action);
   // Whether the block's centre is within kSuccessRadius of the target (in the table's plane).
   bool success() const;
+  std::optional<bool> episode_success() const override { return success(); }
   const Eigen::Vector3d& target() const { return target_; }  // x, y, yaw
   const Tabletop& scene() const { return *scene_; }
   Tabletop& scene() { return *scene_; }

@@ -63,6 +63,7 @@ class BlockStack : public Env {
   // Whether the block rests on the base (centre within kPlaceXY of the base's in the plane, height one
   // block size over it within kPlaceZ, slower than 1 cm/s) and the gripper is open clear of it.
   bool success() const;
+  std::optional<bool> episode_success() const override { return success(); }
 
   Eigen::VectorXd observation() const;
   const Tabletop& scene() const { return *scene_; }

@@ -55,6 +55,36 @@ TEST(Rollout, EpisodeLoopAndSummary) {
   EXPECT_DOUBLE_EQ(r.mean_return, 3.0);
   EXPECT_NEAR(r.std_return, std::sqrt(14.0 / 3.0), 1e-12);
   EXPECT_DOUBLE_EQ(r.mean_length, 7.0);
+  EXPECT_FALSE(r.success_rate);  // no task criterion: no rate
+  EXPECT_FALSE(s.success);       // the pendulum has none
+  eps[0].success = true;
+  eps[1].success = false;
+  eps[2].success = true;
+  EXPECT_DOUBLE_EQ(*summarize(eps).success_rate, 2.0 / 3.0);
+  eps[1].success.reset();  // only episodes with a verdict count
+  EXPECT_DOUBLE_EQ(*summarize(eps).success_rate, 1.0);
+}
+
+TEST(Rollout, TheEpisodeLoopReportsTheTasksSuccessAtTheEnd) {
+  // The scripted stacking expert succeeds on most starts (block_stack_test); the zero policy never stacks.
+  auto env = make_env("block_stack");
+  ASSERT_TRUE(env->episode_success().has_value());
+  auto expert = make_policy_for("scripted:block_stack", *env, 0);
+  auto zero = make_simple_policy("zero", env->action_dim(), 0);
+  int expert_successes = 0;
+  for (uint64_t seed = 0; seed < 3; ++seed) {
+    const EpisodeStats s = run_episode(*env, *expert, seed);
+    ASSERT_TRUE(s.success.has_value());
+    EXPECT_EQ(*s.success, *env->episode_success());  // the verdict of the final state
+    expert_successes += *s.success;
+    const EpisodeStats z = run_episode(*env, *zero, seed);
+    ASSERT_TRUE(z.success.has_value());
+    EXPECT_FALSE(*z.success);
+  }
+  EXPECT_GE(expert_successes, 2);
+  // A frame-skip wrapper forwards the verdict.
+  FrameSkip skipped(make_env("block_push"), 2);
+  EXPECT_TRUE(skipped.episode_success().has_value());
 }
 
 }  // namespace

@@ -123,7 +123,8 @@ TEST(LearningLoops, HybridImitationLogsItsTagsAndResumesExactly) {
     ASSERT_TRUE(tags.count(tag)) << tag;
     EXPECT_EQ(tags.at(tag).size(), 3u) << tag;
   }
-  EXPECT_FALSE(tags.count("loss/critic"));  // no SAC in imitation
+  EXPECT_FALSE(tags.count("loss/critic"));             // no SAC in imitation
+  EXPECT_FALSE(tags.count("imitation/test_success"));  // the pendulum has no success criterion
   // The planner's weight diagnostics of each test episode: an effective sample size in [1, K].
   ASSERT_TRUE(tags.count("imitation/weight_ess"));
   ASSERT_TRUE(tags.count("imitation/saturated_weight"));
@@ -150,6 +151,36 @@ TEST(LearningLoops, HybridImitationLogsItsTagsAndResumesExactly) {
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_EQ(by_tag(killed + "/scalars.csv").at("imitation/demonstrations"),
             (std::vector<double>{1, 2, 3, 4}));
+}
+
+TEST(LearningLoops, RobotTasksLogTheirSuccess) {
+  // Online: every training episode's verdict (0 or 1) and each evaluation's rate.
+  const std::string push = fresh_dir("success_push");
+  Result r = run(kTrain + " --env block_push --method sac --seed 0 --steps 200 --out " + push +
+                 " eval.every=200 eval.episodes=2 train.update_after=1000 --no-progress");
+  ASSERT_EQ(r.code, 0) << r.output;
+  auto tags = by_tag(push + "/scalars.csv");
+  ASSERT_EQ(tags.at("train/success").size(), 2u);  // two 100-step episodes
+  for (double v : tags.at("train/success"))
+    EXPECT_TRUE(v == 0.0 || v == 1.0) << v;
+  ASSERT_EQ(tags.at("eval/success_rate").size(), 2u);  // at step 0 and at the end
+  for (double v : tags.at("eval/success_rate"))
+    EXPECT_TRUE(v == 0.0 || v == 0.5 || v == 1.0) << v;
+
+  // Imitation: the test episode's, the policy's and the expert's verdicts, and the rate over the extra
+  // test episodes. The scripted stacking expert succeeds on most starts.
+  const std::string stack = fresh_dir("success_stack");
+  r = run(kTrain + " --env block_stack --method bc --seed 0 --steps 2 --out " + stack +
+          " imitation.expert=scripted:block_stack imitation.policy_updates=10 imitation.eval_episodes=2"
+          " --no-progress");
+  ASSERT_EQ(r.code, 0) << r.output;
+  tags = by_tag(stack + "/scalars.csv");
+  for (const char* tag : {"imitation/test_success", "imitation/policy_success", "imitation/expert_success",
+                          "imitation/eval_success_rate", "imitation/eval_return_mean"}) {
+    ASSERT_TRUE(tags.count(tag)) << tag;
+    EXPECT_EQ(tags.at(tag).size(), 2u) << tag;
+  }
+  EXPECT_GE(tags.at("imitation/expert_success")[0] + tags.at("imitation/expert_success")[1], 1.0);
 }
 
 TEST(LearningLoops, BehaviourCloningAndTheDeterministicVariantRun) {
