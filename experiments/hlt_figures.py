@@ -20,14 +20,19 @@ groups them by environment and method as their config.yaml says, and writes to -
                              imitation/test_return, a hybrid's policy alone (imitation/policy_return, where
                              it differs from the test return) and the expert from the same start states
                              (imitation/expert_return, pooled over all runs of the environment); the
-                             markdown adds a table of the values per count
+                             markdown adds a table of the values per count; where runs log
+                             imitation/eval_success_rate (the robot tasks), a second row of success rates
+  robot_<env>.png            the robot tasks' online learning: per training episode, the fraction of seeds
+                             whose episode succeeded (train/success) and the episode return, per method;
+                             the markdown adds each seed's first success and successes per 10 episodes
 
 Curves are the mean over seeds with a band of one standard deviation against environment steps; the legend
 gives every curve's seed count. The markdown (--markdown, default OUT/results.md) holds sections, each
 between '<!-- hlt_figures:BEGIN name -->' and '<!-- hlt_figures:END name -->': provenance (the command, the
 runs, the exact sweep files), table (final evaluation return, mean +- std over seeds, in the layout of the
 authors' published table: a row per method, a column per environment, their numbers beside ours), seeds
-(every seed's value), fig1, fig2, fig4, fig5 (image and caption) and notes (what was skipped and why).
+(every seed's value), fig1, fig2, fig4, fig5, robot (image and caption) and notes (what was skipped and
+why).
 --update FILE rewrites, in place, the sections of FILE that carry those markers and nothing else, so
 docs/RESULTS.md includes the regenerated tables verbatim.
 
@@ -68,9 +73,12 @@ IMITATION_X = "imitation/demonstrations"
 IMITATION_TEST = "imitation/test_return"
 IMITATION_POLICY = "imitation/policy_return"
 IMITATION_EXPERT = "imitation/expert_return"
+IMITATION_SUCCESS = "imitation/eval_success_rate"
+SUCCESS_TAG = "train/success"
+EPISODE_RETURN_TAG = "train/episode_return"
 # Config keys that say how a run was run, not what was run: runs differing only in these are one variant.
 NOT_VARIANT = {"seed", "threads", "train.threads", "checkpoint.every", "train.agent_steps"}
-SECTIONS = ["provenance", "table", "seeds", "fig1", "fig2", "fig4", "fig5", "notes"]
+SECTIONS = ["provenance", "table", "seeds", "fig1", "fig2", "fig4", "fig5", "robot", "notes"]
 MARKER = re.compile(r"<!-- hlt_figures:(BEGIN|END) ([A-Za-z0-9_-]+) -->")
 LINESTYLES = ["-", "--", ":", "-."]
 
@@ -388,15 +396,39 @@ def imitation_rows(groups, reg):
     return out
 
 
+def imitation_success_rows(groups, reg):
+    """Per environment whose imitation runs log IMITATION_SUCCESS: [(label, method, [curves])]."""
+    out = {}
+    for gs in groups.values():
+        for g in gs:
+            curves = [c for c in (imitation_curve(r, IMITATION_SUCCESS) for r in g.runs) if c is not None]
+            if curves:
+                out.setdefault(g.env, []).append((g.label, g.method, reg.method_key(g.method), g.index, curves))
+    return {env: [(l, m, c) for l, m, _, _, c in sorted(rows, key=lambda r: (r[2], r[3]))]
+            for env, rows in out.items()}
+
+
+def per_count_table(title, rows, fmt_cell):
+    """A markdown table: a column per demonstration count, a row per (label, n, {count: (mean, std)})."""
+    cols = sorted({c for _, _, values in rows for c in values})
+    lines = [title, "", "| | n | " + " | ".join(str(c) for c in cols) + " |", "|---|---|" + "---|" * len(cols)]
+    for label, n, values in rows:
+        cells = [fmt_cell(*values[c]) if c in values else "" for c in cols]
+        lines.append(f"| {label} | {n} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def imitation_figure(groups, reg, names, args, plt, notes):
     rows = imitation_rows(groups, reg)
     if not rows:
         notes.append(f"Fig. 5 not drawn: no run logged {IMITATION_X}")
         return None, [], ""
-    fig, axes = plt.subplots(1, len(rows), figsize=(5.2 * len(rows), 3.8), squeeze=False)
+    success = imitation_success_rows(groups, reg)
+    nrows = 2 if success else 1
+    fig, axes = plt.subplots(nrows, len(rows), figsize=(5.2 * len(rows), 3.8 * nrows), squeeze=False)
     caption, tables = [], []
-    for ax, (env, env_rows) in zip(axes[0], rows.items()):
-        counts = None
+    for col, (env, env_rows) in enumerate(rows.items()):
+        ax = axes[0][col]
         table = []
         for label, method, linestyle, curves in env_rows:
             if not curves:
@@ -409,7 +441,6 @@ def imitation_figure(groups, reg, names, args, plt, notes):
             ax.fill_between(grid, mean - std, mean + std, color=colour, alpha=0.12, linewidth=0)
             caption.append(f"{env}, {label}: {seeds_word(len(curves))}, {int(grid[0])}-{int(grid[-1])} "
                            "demonstrations")
-            counts = grid if counts is None else np.union1d(counts, grid)
             table.append((label, len(curves), dict(zip(grid.astype(int), zip(mean, std)))))
         ax.set_title(env)
         ax.set_xlabel("expert demonstrations")
@@ -418,20 +449,110 @@ def imitation_figure(groups, reg, names, args, plt, notes):
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="best")
         if table:
-            cols = [int(c) for c in counts]
-            lines = [f"{env}: test return after each demonstration, mean +- std over seeds (n):", "",
-                     "| | n | " + " | ".join(str(c) for c in cols) + " |",
-                     "|---|---|" + "---|" * len(cols)]
-            for label, n, values in table:
-                cells = [f"{values[c][0]:.0f} +- {values[c][1]:.0f}" if c in values else "" for c in cols]
-                lines.append(f"| {label} | {n} | " + " | ".join(cells) + " |")
-            tables.append("\n".join(lines))
+            tables.append(per_count_table(
+                f"{env}: test return after each demonstration, mean +- std over seeds (n):", table,
+                lambda m, sd: f"{m:.0f} +- {sd:.0f}"))
+        if nrows == 2:
+            ax = axes[1][col]
+            srows = []
+            for label, method, curves in success.get(env, []):
+                grid, mean, std = mean_band(curves)
+                colour = reg.colour(method, names)
+                ax.plot(grid, mean, color=colour, marker="o", markersize=3,
+                        label=f"{label} ({seeds_word(len(curves))})")
+                ax.fill_between(grid, np.clip(mean - std, 0, 1), np.clip(mean + std, 0, 1), color=colour,
+                                alpha=0.12, linewidth=0)
+                caption.append(f"{env}, {label}, success rate: {seeds_word(len(curves))}, {int(grid[0])}-"
+                               f"{int(grid[-1])} demonstrations")
+                srows.append((label, len(curves), dict(zip(grid.astype(int), zip(mean, std)))))
+            ax.set_xlabel("expert demonstrations")
+            ax.xaxis.set_major_locator(matplotlib_ticker().MaxNLocator(integer=True))
+            ax.set_ylabel(f"success rate ({IMITATION_SUCCESS})")
+            ax.set_ylim(-0.05, 1.05)
+            ax.grid(alpha=0.3)
+            if srows:
+                ax.legend(fontsize=7, loc="best")
+                tables.append(per_count_table(
+                    f"{env}: success rate of the extra test episodes after each demonstration "
+                    f"(`{IMITATION_SUCCESS}`), mean +- std over seeds (n):", srows,
+                    lambda m, sd: f"{m:.2f} +- {sd:.2f}"))
+            else:
+                ax.set_visible(False)
     suptitle(fig, "Fig. 5-style: imitation (mean +- std over seeds)")
     fig.tight_layout()
     path = os.path.join(args.out, "fig5_imitation.png")
     save(fig, path)
     plt.close(fig)
     return path, caption, "\n\n".join(tables)
+
+
+def episode_series(run, tag):
+    """A run's per-training-episode values of tag, in episode order (rows at the same steps as
+    train/episodes), or None."""
+    if tag not in run.scalars or "train/episodes" not in run.scalars:
+        return None
+    index = dict(zip(*run.scalars["train/episodes"]))
+    points = sorted((index[s], v) for s, v in zip(*run.scalars[tag]) if s in index)
+    return [v for _, v in points] if points else None
+
+
+def robot_figures(groups, reg, names, args, plt, notes):
+    """Online runs that log train/success: success and return per training episode, one figure per env."""
+    out = []
+    envs = sorted({env for (env, _), gs in groups.items() for g in gs
+                   if any(SUCCESS_TAG in r.scalars for r in g.runs)}, key=reg.env_key)
+    for env in envs:
+        mine = sorted((g for (e, _), gs in groups.items() if e == env for g in gs
+                       if any(SUCCESS_TAG in r.scalars for r in g.runs)),
+                      key=lambda g: (reg.method_key(g.method), g.index))
+        fig, axes = plt.subplots(1, 2, figsize=(10.4, 3.8), squeeze=False)
+        lines = [f"{env}: each seed's training episodes (`{SUCCESS_TAG}`): the first that succeeded, and "
+                 "successes per block of 10 episodes.", "",
+                 "| method | seed | first success (episode) | 1-10 | 11-20 | 21-30 | mean return, last 10 episodes |",
+                 "|---|---|---|---|---|---|---|"]
+        caption = []
+        for g in mine:
+            colour = reg.colour(g.method, names)
+            succ = [episode_series(r, SUCCESS_TAG) for r in g.runs]
+            rets = [episode_series(r, EPISODE_RETURN_TAG) for r in g.runs]
+            pairs = [(r, s, e) for r, s, e in zip(g.runs, succ, rets) if s and e]
+            if not pairs:
+                continue
+            n = min(len(s) for _, s, _ in pairs)
+            s_mat = np.array([s[:n] for _, s, _ in pairs])
+            e_mat = np.array([e[:n] for _, _, e in pairs])
+            x = np.arange(1, n + 1)
+            axes[0][0].plot(x, s_mat.mean(axis=0), color=colour, marker="o", markersize=2,
+                            label=f"{g.label} ({seeds_word(len(pairs))})")
+            mean, std = e_mat.mean(axis=0), e_mat.std(axis=0)
+            axes[0][1].plot(x, mean, color=colour, label=f"{g.label} ({seeds_word(len(pairs))})")
+            axes[0][1].fill_between(x, mean - std, mean + std, color=colour, alpha=0.12, linewidth=0)
+            caption.append(f"{env}, {g.label}: {seeds_word(len(pairs))}, episodes 1-{n}")
+            within = 0
+            for run, s, e in sorted(pairs, key=lambda p: p[0].seed):
+                first = next((i + 1 for i, v in enumerate(s) if v > 0.5), None)
+                within += first is not None and first <= 20
+                blocks = [f"{int(sum(v > 0.5 for v in s[a:a + 10]))}/{len(s[a:a + 10])}" if len(s) > a else ""
+                          for a in (0, 10, 20)]
+                tail = e[-10:]
+                tail_text = f"{np.mean(tail):.1f}" if tail else ""
+                lines.append(f"| {g.label} | {run.seed} | {first if first else 'none'} | " + " | ".join(blocks)
+                             + f" | {tail_text} |")
+            lines.append(f"| {g.label} | seeds succeeding within 20 episodes | {within} of {len(pairs)} | | | | |")
+        axes[0][0].set_ylabel(f"fraction of seeds succeeding ({SUCCESS_TAG})")
+        axes[0][0].set_ylim(-0.05, 1.05)
+        axes[0][1].set_ylabel(f"training episode return ({EPISODE_RETURN_TAG})")
+        for ax in axes[0]:
+            ax.set_xlabel("training episode")
+            ax.grid(alpha=0.3)
+            ax.legend(fontsize=7, loc="best")
+        suptitle(fig, f"{env}: online learning, per training episode (mean over seeds)")
+        fig.tight_layout()
+        path = os.path.join(args.out, f"robot_{env}.png")
+        save(fig, path)
+        plt.close(fig)
+        out.append((env, path, caption, "\n".join(lines)))
+    return out
 
 
 # ----------------------------------------------------------------------------------------------- markdown
@@ -698,6 +819,7 @@ def main():
         drawn[spec.name] = benchmark_figure(spec, groups, reg, names, args, plt, notes)
     components = component_figures(groups, reg, names, args, plt, notes)
     drawn["fig5"] = imitation_figure(groups, reg, names, args, plt, notes)
+    robots = robot_figures(groups, reg, names, args, plt, notes)
 
     def bodies(base):
         out = {"provenance": provenance_section(args, runs, groups, reg, reports, left_out),
@@ -728,12 +850,20 @@ def main():
             if path else f"no run logged `{IMITATION_X}`.", caption)
         if table:
             out["fig5"] += "\n\n" + table
+        if robots:
+            out["robot"] = "\n\n".join(figure_section(
+                path, base, f"robot task {env}", f"{env}: per training episode, the fraction of seeds whose "
+                f"episode succeeded (`{SUCCESS_TAG}`) and the episode return (mean +- std over seeds).",
+                caption) + "\n\n" + table for env, path, caption, table in robots)
+        else:
+            out["robot"] = f"_Not drawn: no online run logged {SUCCESS_TAG}._"
         out["notes"] = "\n".join(f"- {n}" for n in notes) if notes else "Nothing was skipped."
         return out
 
     titles = {"provenance": "Provenance", "table": "Final evaluation returns", "seeds": "Every seed",
               "fig1": "Fig. 1: deterministic hybrid learning", "fig2": "Fig. 2: stochastic hybrid learning",
-              "fig4": "Fig. 4: component analysis", "fig5": "Fig. 5: imitation", "notes": "Skipped"}
+              "fig4": "Fig. 4: component analysis", "fig5": "Fig. 5: imitation",
+              "robot": "Robot tasks: learning online", "notes": "Skipped"}
     standalone = bodies(os.path.dirname(os.path.abspath(markdown)))
     text = ("# Results (generated by experiments/hlt_figures.py)\n\n" +
             "\n\n".join(f"## {titles[name]}\n\n{wrap(name, standalone[name])}" for name in SECTIONS) + "\n")
@@ -745,6 +875,8 @@ def main():
         print(f"wrote {path}")
     if drawn["fig5"][0]:
         print(f"wrote {drawn['fig5'][0]}")
+    for _, path, _, _ in robots:
+        print(f"wrote {path}")
     print(f"wrote {markdown}")
     if args.update:
         updated = replace_sections(update_text, bodies(os.path.dirname(os.path.abspath(args.update))))

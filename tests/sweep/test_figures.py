@@ -115,7 +115,17 @@ def build_tree(root):
         "imitation/expert_return": [(1000, 2300.0), (2000, 2300.0), (3000, 2300.0)],
         "imitation/test_return": [(1000, 300.0), (2000, 1200.0), (3000, 2100.0)],
         "imitation/policy_return": [(1000, 100.0), (2000, 400.0), (3000, 900.0)],
+        "imitation/eval_success_rate": [(1000, 0.0), (2000, 0.5), (3000, 1.0)],
     })
+    # a robot task learnt online: seed 0 succeeds from its 3rd episode on, seed 1 never (episodes of 100
+    # steps at steps 100, 200, ...; 12 episodes)
+    for seed, first in ((0, 3), (1, None)):
+        make_run(root, "block_push", "hybrid-stochastic", seed, {
+            "eval/return_mean": [(0, -50.0), (1200, -20.0)],
+            "train/episodes": [(100 * e, e) for e in range(1, 13)],
+            "train/success": [(100 * e, 1.0 if first and e >= first else 0.0) for e in range(1, 13)],
+            "train/episode_return": [(100 * e, -10.0 * seed - e) for e in range(1, 13)],
+        })
 
 
 def run(cmd):
@@ -235,6 +245,18 @@ class Figures(unittest.TestCase):
         self.assertIn("| expert | 1 | 2300 +- 0 | 2300 +- 0 | 2300 +- 0 |", fig5)
         self.assertIn("| hybrid-stochastic | 1 | 300 +- 0 | 1200 +- 0 | 2100 +- 0 |", fig5)
         self.assertIn("| hybrid-stochastic, policy alone | 1 | 100 +- 0 | 400 +- 0 | 900 +- 0 |", fig5)
+
+    def test_robot_tasks_get_success_per_episode_and_per_count(self):
+        robot = section(self.markdown, "robot")
+        self.assertIn("](robot_block_push.png)", robot)
+        # seed 0: first success at episode 3, 8 of 10 then 2 of 2; seed 1: none; the mean return of episodes
+        # 3-12: seed 0 -(3 + ... + 12) / 10, seed 1 that minus 10
+        self.assertIn("| hybrid-stochastic | 0 | 3 | 8/10 | 2/2 |  | -7.5 |", robot)
+        self.assertIn("| hybrid-stochastic | 1 | none | 0/10 | 0/2 |  | -17.5 |", robot)
+        self.assertIn("| hybrid-stochastic | seeds succeeding within 20 episodes | 1 of 2 |", robot)
+        self.assertTrue(os.path.exists(os.path.join(self.out, "robot_block_push.png")))
+        fig5 = section(self.markdown, "fig5")
+        self.assertIn("| hybrid-stochastic | 1 | 0.00 +- 0.00 | 0.50 +- 0.00 | 1.00 +- 0.00 |", fig5)
 
     def test_update_rewrites_only_the_marked_sections(self):
         with open(self.doc) as f:
