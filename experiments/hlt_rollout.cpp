@@ -1,10 +1,13 @@
 // hlt_rollout: runs a registered environment with a simple or saved policy for N episodes and reports the
-// returns; optionally writes the trajectory as CSV and the frames as a video or an image strip.
+// returns; optionally writes the trajectory as CSV and the frames as a video or an image strip, and for a
+// camera-observed task reports the estimator's error against the simulator and the time per control step.
 //
 //   hlt_rollout --env cartpole_swingup --episodes 10 --seed 0
 //               --policy zero|random|constant:0.5|checkpoint:PATH|expert:PATH|scripted:NAME
 //               [--frame-skip K] [--csv traj.csv] [--video out.mp4] [--strip out.png] [--demos out.hltd]
+//               [--perception]
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <iostream>
 #include <memory>
@@ -18,6 +21,7 @@
 #include <CLI/CLI.hpp>
 #include <cerrno>
 #include <cstring>
+#include <ctime>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
@@ -29,6 +33,7 @@
 #include "envs/registry.h"
 #include "envs/rollout.h"
 #include "experiments/cli_checks.h"
+#include "experiments/perception_report.h"
 #include "hlt/util/error.h"
 #include "hlt/util/files.h"
 #include "hlt/util/main_guard.h"
@@ -171,8 +176,9 @@ struct Options {
   int record_episodes = 1;
   int width = 480;
   int height = 360;
-  std::string demos;  // record every episode as demonstrations (.hltd)
-  int max_steps = 0;  // cut episodes after this many steps (0: the environment's limit)
+  std::string demos;        // record every episode as demonstrations (.hltd)
+  int max_steps = 0;        // cut episodes after this many steps (0: the environment's limit)
+  bool perception = false;  // report the camera-observed task's estimator error and step timings
 };
 
 int run(Options o, bool frame_skip_given) {
@@ -203,6 +209,18 @@ int run(Options o, bool frame_skip_given) {
       ensure_writable_directory(out->substr(0, slash));
   }
   const bool recording = (!o.video.empty() || !o.strip.empty()) && o.record_episodes > 0;
+  std::optional<PerceptionReport> perception;
+  if (o.perception) {
+    const robot::CameraObserved* camera = camera_task(*env);
+    check(camera != nullptr,
+          "--perception needs a camera-observed environment (block_push_camera, "
+          "block_stack_camera), not {}",
+          o.env);
+    perception.emplace(*camera);
+  }
+  using Clock = std::chrono::steady_clock;
+  Clock::time_point step_start = Clock::now();
+  double step_start_cpu = thread_cpu_ms();
   fmt::print("env {} (observation {}, action {}, limit {} steps{}), policy {}, seed {}\n", o.env,
              env->observation_dim(), env->action_dim(), env->max_episode_steps(),
              o.frame_skip != 1 ? fmt::format(", frame skip {}", o.frame_skip) : "", policy->describe(),
@@ -228,9 +246,15 @@ int run(Options o, bool frame_skip_given) {
     const bool record = recording && ep < o.record_episodes;
     std::vector<DemoStep> demo_steps;
     auto on_reset = [&]() {
+      if (perception) perception->add(-1.0, -1.0);
       if (record) recorder.add(env->render(o.width, o.height));
+      step_start = Clock::now();
+      step_start_cpu = thread_cpu_ms();
     };
     auto on_step = [&](const Transition& t) {
+      if (perception)
+        perception->add(thread_cpu_ms() - step_start_cpu,
+                        std::chrono::duration<double, std::milli>(Clock::now() - step_start).count());
       if (!o.csv.empty()) {
         csv << ep << ',' << t.step;
         for (Eigen::Index i = 0; i < t.observation.size(); ++i)
@@ -244,6 +268,8 @@ int run(Options o, bool frame_skip_given) {
       if (demos)
         demo_steps.push_back({t.observation, t.action, t.result.observation, t.result.reward,
                               t.result.terminated, t.result.truncated});
+      step_start = Clock::now();
+      step_start_cpu = thread_cpu_ms();
     };
     // The first episode starts from the seed; later ones continue the environment's generator.
     const EpisodeStats s =
@@ -258,6 +284,7 @@ int run(Options o, bool frame_skip_given) {
   const ReturnSummary sum = summarize(episodes);
   fmt::print("mean return {:.1f} std {:.1f} mean length {:.1f} over {} episodes\n", sum.mean_return,
              sum.std_return, sum.mean_length, episodes.size());
+  if (perception) perception->print();
 
   if (demos) {
     demos->save(o.demos);
@@ -316,6 +343,9 @@ int run_tool(int argc, char** argv) {
   app.add_option("--max-steps", o.max_steps, "Cut each episode after this many steps (0: the env's limit)")
       ->capture_default_str();
   app.add_option("--width", o.width, "Frame width in pixels")->capture_default_str();
+  app.add_flag("--perception", o.perception,
+               "Camera-observed tasks: report the estimator's error against the simulator (mean, 95th "
+               "percentile, misses) and the time per control step (render, perceive, rest)");
   app.add_option("--height", o.height, "Frame height in pixels")->capture_default_str();
   if (const std::optional<int> code = hlt::parse_command_line(app, argc, argv)) return *code;
   hlt::check_finite_flags(app);

@@ -18,7 +18,7 @@ void line(cv::Mat& img, const cv::Point2d& a, const cv::Point2d& b, const cv::Sc
   cv::line(img, to_px(a), to_px(b), c, thickness, cv::LINE_AA, 4);
 }
 
-void status_line(cv::Mat& img, int row, const char* name, const ObjectEstimate& o) {
+void status_line(cv::Mat& img, int row, const std::string& name, const ObjectEstimate& o) {
   const Eigen::Vector3d p = o.table_from_object.translation();
   const std::string text =
       fmt::format("{:<12} {:+.3f} {:+.3f} yaw {:+5.1f}  {}{}", name, p.x(), p.y(),
@@ -60,9 +60,8 @@ void draw_overlay(cv::Mat& image, const CameraModel& camera, const FrameResult& 
     cv::drawMarker(image, c, cv::Scalar(255, 0, 255), cv::MARKER_CROSS, 14, 2, cv::LINE_AA);
   }
   const TaskState& s = result.state;
-  status_line(image, 0, "block", s.block);
-  status_line(image, 1, "target", s.target);
-  status_line(image, 2, "end_effector", s.end_effector);
+  for (size_t i = 0; i < s.objects.size(); ++i)
+    status_line(image, static_cast<int>(i), s.names[i], s.objects[i]);
   const std::string info = fmt::format(
       "frame {}  t {:.2f}s  tags {}  {:.1f} ms{}", s.frame, result.time, result.detections.tags.size(),
       result.total_ms, s.table_known ? (s.table_stale ? "  table held" : "") : "  TABLE UNKNOWN");

@@ -1,5 +1,6 @@
 #include "envs/perception/perception_pipeline.h"
 
+#include <algorithm>
 #include <chrono>
 
 #include <fmt/format.h>
@@ -41,10 +42,11 @@ const FrameResult& PerceptionPipeline::process(const cv::Mat& image, double time
   r.time = time;
   r.detections = detector_.detect(image);
   r.detect_ms = ms_since(t0);
-  StateEstimator::BlockFallback fallback;
+  StateEstimator::PositionFallback fallback;
   if (options_.colour_fallback) {
-    fallback = [&](const Eigen::Isometry3d& table_from_camera) -> std::optional<Eigen::Vector3d> {
-      r.colour = colour_.detect(image);
+    fallback = [&](const TrackedObject&,
+                   const Eigen::Isometry3d& table_from_camera) -> std::optional<Eigen::Vector3d> {
+      if (!r.colour) r.colour = colour_.detect(image);  // one colour: every object asking sees the same blob
       return colour_.locate(*r.colour, table_from_camera);
     };
   }
@@ -54,11 +56,16 @@ const FrameResult& PerceptionPipeline::process(const cv::Mat& image, double time
   return last_;
 }
 
-std::string PerceptionPipeline::states_csv_header() {
+std::string PerceptionPipeline::states_csv_header(const std::vector<std::string>& objects) {
   std::string h = "frame,time,tags,unknown_tags,table_known,table_stale,colour_used";
-  for (const char* o : {"block", "target", "end_effector"})
+  for (const std::string& o : objects)
     h += fmt::format(",{0}_x,{0}_y,{0}_z,{0}_yaw,{0}_valid,{0}_stale,{0}_source,{0}_misses,{0}_age", o);
-  h += ",ee_to_block_x,ee_to_block_y,ee_to_block_yaw,block_to_target_x,block_to_target_y,block_to_target_yaw";
+  const auto has = [&](const char* n) {
+    return std::find(objects.begin(), objects.end(), n) != objects.end();
+  };
+  if (has("block") && has("target") && has("end_effector"))
+    h += ",ee_to_block_x,ee_to_block_y,ee_to_block_yaw,block_to_target_x,block_to_target_y,block_to_target_"
+         "yaw";
   h += ",valid,detect_ms,total_ms";
   return h;
 }
@@ -68,9 +75,8 @@ std::string PerceptionPipeline::states_csv_row(const FrameResult& r) {
   std::string row = fmt::format("{},{:.6f},{},{},{},{},{}", s.frame, r.time, r.detections.tags.size(),
                                 r.detections.unknown_ids.size(), s.table_known ? 1 : 0, s.table_stale ? 1 : 0,
                                 r.colour && r.colour->found ? 1 : 0);
-  append_object(row, s.block);
-  append_object(row, s.target);
-  append_object(row, s.end_effector);
+  for (const ObjectEstimate& o : s.objects)
+    append_object(row, o);
   const Eigen::VectorXd v = s.vector();
   for (int i = 0; i < v.size(); ++i)
     row += fmt::format(",{:.6f}", v(i));

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -42,10 +43,14 @@ class PerceptionPipeline {
   const CameraModel& camera() const { return camera_; }
   const TagConfig& config() const { return config_; }
   void reset() { estimator_.reset(); }
+  // The estimator, e.g. to snapshot its filter (StateEstimator::save/restore).
+  const StateEstimator& estimator() const { return estimator_; }
+  StateEstimator& estimator() { return estimator_; }
 
   // One row per frame: time, counts, and for each object its table-frame position, yaw and status, then the
-  // task vector.
-  static std::string states_csv_header();
+  // task vector. The header names the objects tracked (the pushing task's by default).
+  static std::string states_csv_header(const std::vector<std::string>& objects = {"block", "target",
+                                                                                  "end_effector"});
   static std::string states_csv_row(const FrameResult& r);
   // One row per detected tag per frame: id, name, quality, camera-frame pose, corners.
   static std::string detections_csv_header();

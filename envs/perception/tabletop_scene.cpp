@@ -175,23 +175,32 @@ std::vector<TexturedQuad> TabletopScene::object_quads(const TabletopPoses& poses
   check(is_finite(poses.block) && is_finite(poses.target) && is_finite(poses.end_effector),
         "TabletopScene: object poses must be finite");
   const TabletopLayout& L = layout_;
-  std::vector<TexturedQuad> out;
-  if (L.show_target) {
-    for (TexturedQuad& q : box(poses.target, L.target_size, L.target_colour))
-      out.push_back(q);
-    add_tag("target", poses.target, out);
-  }
-  if (L.show_block) {
-    for (TexturedQuad& q : box(poses.block, L.block_size, L.block_colour))
-      out.push_back(q);
-    add_tag("block", poses.block, out);
-  }
+  std::vector<ScenePart> parts;
+  if (L.show_target)
+    parts.push_back(
+        {poses.target, {{Eigen::Isometry3d::Identity(), L.target_size, L.target_colour}}, {"target"}});
+  if (L.show_block)
+    parts.push_back(
+        {poses.block, {{Eigen::Isometry3d::Identity(), L.block_size, L.block_colour}}, {"block"}});
   if (L.show_end_effector) {
-    const Eigen::Isometry3d centre =
-        poses.end_effector * Eigen::Translation3d(0, 0, 0.5 * L.end_effector_size.z());
-    for (TexturedQuad& q : box(centre, L.end_effector_size, L.end_effector_colour))
-      out.push_back(q);
-    add_tag("end_effector", poses.end_effector, out);
+    const Eigen::Isometry3d centre(Eigen::Translation3d(0, 0, 0.5 * L.end_effector_size.z()));
+    parts.push_back(
+        {poses.end_effector, {{centre, L.end_effector_size, L.end_effector_colour}}, {"end_effector"}});
+  }
+  return part_quads(parts);
+}
+
+std::vector<TexturedQuad> TabletopScene::part_quads(const std::vector<ScenePart>& parts) const {
+  std::vector<TexturedQuad> out;
+  for (const ScenePart& part : parts) {
+    check(is_finite(part.table_from_object), "TabletopScene: object poses must be finite");
+    for (const SceneBox& b : part.boxes) {
+      check((b.size.array() > 0).all(), "TabletopScene: box sizes must be positive");
+      for (TexturedQuad& q : box(part.table_from_object * b.object_from_box, b.size, b.colour))
+        out.push_back(std::move(q));
+    }
+    for (const std::string& tag : part.tags)
+      add_tag(tag, part.table_from_object, out);
   }
   return out;
 }

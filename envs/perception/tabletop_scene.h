@@ -1,4 +1,5 @@
-// hlt::TabletopScene: the Sawyer pushing set-up as flat patches for SyntheticCamera. A textured table top,
+// hlt::TabletopScene: the Sawyer pushing set-up (or any task's objects, as ScenePart boxes with tags) as
+// flat patches for SyntheticCamera. A textured table top,
 // the reference tag lying on it, a coloured block with its tag on the top face, a flat target plate with
 // its tag, and the end-effector (a box whose tip is its origin) with its tag on top. Tag ids, sizes and where
 // each tag sits on its object come from the TagConfig, so rendered scenes and the estimator agree by
@@ -27,6 +28,21 @@ struct TabletopPoses {  // table frame
   Eigen::Isometry3d end_effector = Eigen::Isometry3d::Identity();
 };
 
+// A box-shaped piece of a moving object: its centre and axes in the object's frame, edge lengths, colour.
+struct SceneBox {
+  Eigen::Isometry3d object_from_box = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d size = Eigen::Vector3d::Constant(0.05);
+  cv::Vec3b colour{128, 128, 128};
+};
+
+// A moving object of any task's scene: its pose (table frame), the boxes it is made of, and the tag-config
+// names of the tags stuck on it (each drawn where the config's object_offset puts it).
+struct ScenePart {
+  Eigen::Isometry3d table_from_object = Eigen::Isometry3d::Identity();
+  std::vector<SceneBox> boxes;
+  std::vector<std::string> tags;
+};
+
 struct TabletopLayout {
   double table_x0 = -0.35, table_x1 = 0.85, table_y0 = -0.45, table_y1 = 0.60;  // table top extent, metres
   Eigen::Vector3d block_size{0.05, 0.05, 0.05};
@@ -52,6 +68,8 @@ class TabletopScene {
   std::vector<TexturedQuad> static_quads() const;
   // Block, target and end-effector with their tags.
   std::vector<TexturedQuad> object_quads(const TabletopPoses& poses) const;
+  // Any task's moving objects (the layout's object sizes and show_* flags do not apply).
+  std::vector<TexturedQuad> part_quads(const std::vector<ScenePart>& parts) const;
 
   // Poses of a typical episode start: block, target and end-effector resting on the table.
   static TabletopPoses example_poses();

@@ -53,7 +53,7 @@ void PerceptionPipelineFrame(benchmark::State& state, double decimate) {
     const FrameResult& r = pipeline.process(img, t);
     t += 0.1;
     tags = r.detections.tags.size();
-    benchmark::DoNotOptimize(r.state.block.table_from_object);
+    benchmark::DoNotOptimize(r.state.object("block").table_from_object);
   }
   state.counters["tags"] = static_cast<double>(tags);
 }

@@ -149,7 +149,7 @@ INSTANTIATE_TEST_SUITE_P(Registered, AllEnvs, testing::ValuesIn(env_names()),
 TEST(Registry, KnowsTheEnvironmentsAndListsThemOnError) {
   const std::vector<std::string> names = env_names();
   for (const char* n : {"pendulum", "cartpole_swingup", "acrobot", "hopper", "half_cheetah", "ant",
-                        "block_push", "block_stack"})
+                        "block_push", "block_stack", "block_push_camera", "block_stack_camera"})
     EXPECT_NE(std::find(names.begin(), names.end(), n), names.end()) << n;
   try {
     make_env("pendulm");

@@ -36,7 +36,9 @@ TEST(PerceptionPipeline, TracksAPushAndWritesConsistentCsv) {
     EXPECT_EQ(r.detections.tags.size(), 4u);
     EXPECT_FALSE(r.colour.has_value());  // colour tracking only runs when the block's tag is missing
     // Filtered estimates lag a moving object a little: within 1 cm at 1 cm per frame.
-    EXPECT_LT((r.state.block.table_from_object.translation() - poses.block.translation()).norm(), 0.01) << i;
+    EXPECT_LT((r.state.object("block").table_from_object.translation() - poses.block.translation()).norm(),
+              0.01)
+        << i;
     const std::string row = PerceptionPipeline::states_csv_row(r);
     EXPECT_EQ(columns(row), columns(PerceptionPipeline::states_csv_header()));
     const std::string rows = PerceptionPipeline::detections_csv_rows(r);
@@ -50,8 +52,10 @@ TEST(PerceptionPipeline, TracksAPushAndWritesConsistentCsv) {
   // At rest, the filter converges onto the truth.
   for (int i = 5; i < 15; ++i)
     pipeline.process(renderer.render(scene.object_quads(poses)), 0.2 * i);
-  EXPECT_LT((pipeline.last().state.block.table_from_object.translation() - poses.block.translation()).norm(),
-            0.001);
+  EXPECT_LT(
+      (pipeline.last().state.object("block").table_from_object.translation() - poses.block.translation())
+          .norm(),
+      0.001);
   const Eigen::VectorXd v = pipeline.last().state.vector();
   // The end-effector's origin is 10 cm below its tag, so a small tag rotation error moves it by millimetres.
   EXPECT_NEAR(v(0), 0.05, 0.003);
