@@ -66,6 +66,8 @@ class CameraObserved : public Env {
   int max_episode_steps() const override { return task_->max_episode_steps(); }
   double dt() const override { return task_->dt(); }
   cv::Mat render(int width = 480, int height = 360) const override { return task_->render(width, height); }
+  // Success is judged on the simulator's truth, not on the camera's estimate.
+  std::optional<bool> episode_success() const override { return task_->episode_success(); }
 
   // The state-observed task underneath (its observation is the simulator's truth).
   const Env& task() const { return *task_; }

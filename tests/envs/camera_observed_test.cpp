@@ -135,6 +135,8 @@ TEST(CameraObserved, StackingEstimatorInTheLoopAndTheExpertStillStacks) {
   EXPECT_LT(quantile(e.position, 0.95), 0.008);
   EXPECT_LT(e.misses, e.measurements / 10);
   EXPECT_TRUE(dynamic_cast<const BlockStack&>(env->task()).success());
+  // The episode loop's verdict is the task's, judged on the simulator's truth.
+  EXPECT_EQ(env->episode_success(), std::optional<bool>(true));
 }
 
 // The reward is the task's reward of the camera's observation (what a real robot could compute), not of the
