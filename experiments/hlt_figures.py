@@ -572,8 +572,12 @@ def steps_text(step, skip):
 
 def table_section(groups, stats, reg, reference):
     ref = reference.get("results") or {}
-    envs = sorted({e for e, _ in groups} | set(ref), key=reg.env_key)
-    methods = sorted({m for _, m in groups} | {m for e in ref.values() for m in (e or {})}, key=reg.method_key)
+    # Imitation runs are measured per demonstration (Fig. 5's table), not by a final evaluation return.
+    online_keys = {k for k, gs in groups.items()
+                   if not all(any(IMITATION_X in r.scalars for r in g.runs) for g in gs)}
+    envs = sorted({e for e, _ in online_keys} | set(ref), key=reg.env_key)
+    online = {m for _, m in online_keys}
+    methods = sorted(online | {m for e in ref.values() for m in (e or {})}, key=reg.method_key)
     footnotes = reference.get("footnotes") or []
     marks = {}
     for i, note in enumerate(footnotes):
