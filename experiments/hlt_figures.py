@@ -573,8 +573,10 @@ def steps_text(step, skip):
 def table_section(groups, stats, reg, reference):
     ref = reference.get("results") or {}
     # Imitation runs are measured per demonstration (Fig. 5's table), not by a final evaluation return.
-    online_keys = {k for k, gs in groups.items()
-                   if not all(any(IMITATION_X in r.scalars for r in g.runs) for g in gs)}
+    def measured_per_demonstration(g):
+        return any(IMITATION_X in r.scalars for r in g.runs) and not any(EVAL_TAG in r.scalars for r in g.runs)
+
+    online_keys = {k for k, gs in groups.items() if not all(measured_per_demonstration(g) for g in gs)}
     envs = sorted({e for e, _ in online_keys} | set(ref), key=reg.env_key)
     online = {m for _, m in online_keys}
     methods = sorted(online | {m for e in ref.values() for m in (e or {})}, key=reg.method_key)
