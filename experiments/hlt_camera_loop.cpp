@@ -17,8 +17,6 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "envs/registry.h"
-#include "envs/robot/block_push.h"
-#include "envs/robot/block_stack.h"
 #include "envs/rollout.h"
 #include "experiments/cli_checks.h"
 #include "experiments/perception_report.h"
@@ -37,15 +35,6 @@ struct Options {
   int max_steps = 0;
   std::string image;  // the camera's first frame of the first episode
 };
-
-// The task's own success test, where it has one.
-std::string success_note(const robot::CameraObserved& env) {
-  if (auto* push = dynamic_cast<const robot::BlockPush*>(&env.task()))
-    return push->success() ? " success" : " no success";
-  if (auto* stack = dynamic_cast<const robot::BlockStack*>(&env.task()))
-    return stack->success() ? " success" : " no success";
-  return "";
-}
 
 int run(const Options& o) {
   std::unique_ptr<Env> env = make_env(o.env);
@@ -81,7 +70,7 @@ int run(const Options& o) {
         run_episode(*env, *policy, ep == 0 ? std::optional<uint64_t>(o.seed) : std::nullopt, on_step,
                     on_reset, o.max_steps);
     fmt::print("episode {}: return {:.2f} length {}{}\n", ep, s.episode_return, s.length,
-               success_note(*camera));
+               s.success ? (*s.success ? " success" : " no success") : "");
     std::fflush(stdout);  // a line per episode as it ends, also into a pipe
   }
   report.print();

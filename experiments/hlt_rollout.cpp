@@ -278,12 +278,18 @@ int run(Options o, bool frame_skip_given) {
     if (demos) demos->add_episode(std::move(demo_steps));
     std::string note = s.terminated ? " (terminated)" : "";
     if (!s.failure.empty()) note = " (simulation failed: " + s.failure + ")";
+    if (s.success) note += *s.success ? " success" : " no success";
     fmt::print("episode {}: return {:.1f} length {}{}\n", ep, s.episode_return, s.length, note);
     episodes.push_back(s);
   }
   const ReturnSummary sum = summarize(episodes);
   fmt::print("mean return {:.1f} std {:.1f} mean length {:.1f} over {} episodes\n", sum.mean_return,
              sum.std_return, sum.mean_length, episodes.size());
+  if (sum.success_rate) {
+    const auto succeeded = std::count_if(episodes.begin(), episodes.end(),
+                                         [](const EpisodeStats& e) { return e.success.value_or(false); });
+    fmt::print("success {} of {} episodes ({:.0f} %)\n", succeeded, episodes.size(), 100 * *sum.success_rate);
+  }
   if (perception) perception->print();
 
   if (demos) {

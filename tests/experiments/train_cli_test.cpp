@@ -117,6 +117,23 @@ TEST(TrainCli, RejectsBadInputWithClearMessages) {
   EXPECT_NE(r.output.find("--fps must be a finite number, got 'nan'"), std::string::npos) << r.output;
 }
 
+TEST(RolloutCli, ReportsTheTasksSuccess) {
+  // The scripted stacking expert stacks (block_stack_test); a task without a criterion prints none.
+  Result r =
+      run(std::string(HLT_ROLLOUT_BIN) + " --env block_stack --policy scripted:block_stack --episodes 2");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("episode 0: return"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(" success\n"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("success 2 of 2 episodes (100 %)"), std::string::npos) << r.output;
+  r = run(std::string(HLT_ROLLOUT_BIN) + " --env block_push --policy zero --episodes 1");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("no success"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("success 0 of 1 episodes (0 %)"), std::string::npos) << r.output;
+  r = run(std::string(HLT_ROLLOUT_BIN) + " --env pendulum --policy zero --episodes 1");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(r.output.find("success"), std::string::npos) << r.output;
+}
+
 TEST(TrainCli, NeverOverwritesARunAndReportsCorruptCheckpoints) {
   const std::string dir = fresh_dir("existing");
   Result r = run(kTrain + kSmall + " --method sac --steps 60 checkpoint.every=50 eval.every=0 --out " + dir);
