@@ -10,17 +10,20 @@
 namespace hlt {
 namespace {
 
+// A one-dimensional policy with every weight zero: mu = 0.2 (the mean head's last bias), log std = -0.5.
+GaussianPolicy constant_policy() {
+  GaussianPolicy policy(GaussianPolicyOptions{1, 1, {2}, Activation::kRelu});
+  torch::NoGradGuard g;
+  for (auto& p : policy->parameters())
+    p.zero_();
+  policy->mean_layers[1]->as<torch::nn::Linear>()->bias.fill_(0.2);
+  policy->log_std_layers[1]->as<torch::nn::Linear>()->bias.fill_(-0.5);
+  return policy;
+}
+
 TEST(BehaviourCloning, LossIsTheHandComputedNegativeLogLikelihood) {
   torch::manual_seed(0);
-  GaussianPolicy policy(GaussianPolicyOptions{1, 1, {2}, Activation::kRelu});
-  // Zero every weight: mu = bias of the mean head's last layer, log std = that of the log-std head.
-  {
-    torch::NoGradGuard g;
-    for (auto& p : policy->parameters())
-      p.zero_();
-    policy->mean_layers[1]->as<torch::nn::Linear>()->bias.fill_(0.2);
-    policy->log_std_layers[1]->as<torch::nn::Linear>()->bias.fill_(-0.5);
-  }
+  GaussianPolicy policy = constant_policy();
   BehaviourCloning bc(policy, BehaviourCloningOptions{});
   const auto states = torch::zeros({2, 1});
   const auto actions = torch::tensor({{0.5f}, {-0.3f}});
@@ -34,17 +37,6 @@ TEST(BehaviourCloning, LossIsTheHandComputedNegativeLogLikelihood) {
   EXPECT_NEAR(bc.loss(states, actions), expected, 1e-5);
   EXPECT_NEAR(bc.update(states, actions), expected, 1e-5);
   EXPECT_LT(bc.loss(states, actions), expected);  // the step lowered it
-}
-
-// The policy of the test above (mu = 0.2, log std = -0.5 everywhere), one action dimension.
-GaussianPolicy constant_policy() {
-  GaussianPolicy policy(GaussianPolicyOptions{1, 1, {2}, Activation::kRelu});
-  torch::NoGradGuard g;
-  for (auto& p : policy->parameters())
-    p.zero_();
-  policy->mean_layers[1]->as<torch::nn::Linear>()->bias.fill_(0.2);
-  policy->log_std_layers[1]->as<torch::nn::Linear>()->bias.fill_(-0.5);
-  return policy;
 }
 
 double log_normal_cdf(double x) {
