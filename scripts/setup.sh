@@ -6,7 +6,7 @@ set -euo pipefail
 packages=(
   build-essential cmake ninja-build pkg-config git
   libtorch-dev libopenblas0-openmp
-  libeigen3-dev libfmt-dev libyaml-cpp-dev libcli11-dev
+  libeigen3-dev libsleef-dev libfmt-dev libyaml-cpp-dev libcli11-dev
   libbullet-dev libbullet-extras-dev
   libopencv-dev libapriltag-dev
   libgtest-dev libgmock-dev libbenchmark-dev

@@ -4,6 +4,7 @@
 
 #include <torch/torch.h>
 
+#include "hlt/simd/vector_math.h"
 #include "hlt/util/error.h"
 
 namespace hlt {
@@ -13,10 +14,14 @@ torch::nn::LinearImpl* linear_at(torch::nn::ModuleList list, size_t i) {
   return list[i]->as<torch::nn::Linear>();
 }
 
-// x = act(x + bias) for a contiguous row block x [rows, batch] and a bias parameter [rows]. The bias goes in
-// through Eigen (cheaper than the bias path of addmm); sin through ATen (its vectorised kernels are several
-// times faster than Eigen's portable SSE2 build); ReLU through Eigen, fused with the bias, without dispatch.
+// x = act(x + bias) for a contiguous row block x [rows, batch] and a bias parameter [rows]: for float one
+// pass of hlt's vector kernels (SLEEF's sin, no dispatched op); double (tests) through Eigen and ATen.
 void bias_activate(const at::Tensor& x, const at::Tensor& bias, std::optional<Activation> a) {
+  if (x.scalar_type() == at::kFloat) {
+    const BiasThen then = !a ? BiasThen::kNothing : *a == Activation::kSin ? BiasThen::kSin : BiasThen::kRelu;
+    bias_rows(x.data_ptr<float>(), x.size(0), x.size(1), x.stride(0), bias.data_ptr<float>(), then);
+    return;
+  }
   dispatch_floating(x, [&](auto tag) {
     using T = decltype(tag);
     auto m = row_map<T>(x);

@@ -1,0 +1,36 @@
+// Vectorised elementwise kernels for the float hot loops of the planners and learners: SLEEF's sin and cos
+// (at most 3.5 ulp of error) and the bias passes that follow a layer's matrix product. Each is compiled for
+// AVX-512, AVX2 + FMA and SSE2; the widest set the CPU supports is chosen once, at first use.
+//
+// Why not ATen's sin: it runs SLEEF's 1-ulp AVX2 kernel behind a dispatched op, which at the planners' sizes
+// (a few thousand values per layer) costs about four times the AVX-512 3.5-ulp kernel called directly.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace hlt {
+
+// What a bias pass does after adding the bias.
+enum class BiasThen { kNothing, kRelu, kSin };
+
+// x[r * ld + c] = f(x[r * ld + c] + bias[r]) for r < rows, c < cols (a feature-major batch: one row per
+// unit). Preconditions: ld >= cols; bias has `rows` values.
+void bias_rows(float* x, int64_t rows, int64_t cols, int64_t ld, const float* bias, BiasThen f);
+// x[r * ld + c] = f(x[r * ld + c] + bias[c]) (a sample-major batch: one row per sample).
+void bias_cols(float* x, int64_t rows, int64_t cols, int64_t ld, const float* bias, BiasThen f);
+
+// out[i] = sin(x[i]) or cos(x[i]) for i < n; out may equal x.
+void vector_sin(const float* x, float* out, int64_t n);
+void vector_cos(const float* x, float* out, int64_t n);
+
+// The instruction set in use: "avx512", "avx2" or "sse2".
+const char* vector_isa();
+// Uses the named instruction set's kernels from now on (tests and benchmarks compare them); throws
+// hlt::Error for an unknown name or one the CPU lacks. Not to be called while other threads run kernels.
+void use_vector_isa(const std::string& isa);
+// The instruction sets this CPU can run, widest first.
+std::vector<std::string> supported_vector_isas();
+
+}  // namespace hlt

@@ -1,0 +1,101 @@
+// The SSE2 kernels (every x86-64 CPU has SSE2) and the choice of the kernel table.
+#include <emmintrin.h>
+#include <sleef.h>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include "hlt/util/error.h"
+#include "kernels.h"
+#include "table.h"
+
+namespace hlt {
+namespace {
+
+struct Sse2 {
+  using Reg = __m128;
+  static constexpr int kWidth = 4;
+  static Reg load(const float* p) { return _mm_loadu_ps(p); }
+  static void store(float* p, Reg v) { _mm_storeu_ps(p, v); }
+  // The first n < 4 lanes (SSE2 has no masked moves; the others are zero on load and untouched on store).
+  static Reg load_partial(const float* p, int64_t n) {
+    alignas(16) float lanes[4] = {0, 0, 0, 0};
+    for (int64_t i = 0; i < n; ++i)
+      lanes[i] = p[i];
+    return _mm_load_ps(lanes);
+  }
+  static void store_partial(float* p, Reg v, int64_t n) {
+    alignas(16) float lanes[4];
+    _mm_store_ps(lanes, v);
+    for (int64_t i = 0; i < n; ++i)
+      p[i] = lanes[i];
+  }
+  static Reg set1(float a) { return _mm_set1_ps(a); }
+  static Reg zero() { return _mm_setzero_ps(); }
+  static Reg add(Reg a, Reg b) { return _mm_add_ps(a, b); }
+  static Reg max(Reg a, Reg b) { return _mm_max_ps(a, b); }
+  static Reg sin(Reg a) { return Sleef_sinf4_u35sse2(a); }
+  static Reg cos(Reg a) { return Sleef_cosf4_u35sse2(a); }
+};
+
+// The widest instruction set the CPU has, first.
+std::vector<const VectorKernelTable*> supported() {
+  __builtin_cpu_init();
+  std::vector<const VectorKernelTable*> tables;
+  if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("fma")) tables.push_back(&avx512_kernels());
+  if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) tables.push_back(&avx2_kernels());
+  tables.push_back(&sse2_kernels());
+  return tables;
+}
+
+const VectorKernelTable*& current() {
+  static const VectorKernelTable* table = supported().front();
+  return table;
+}
+
+const VectorKernelTable& chosen() {
+  return *current();
+}
+
+}  // namespace
+
+const VectorKernelTable& sse2_kernels() {
+  static const VectorKernelTable table = make_table<Kernels<Sse2>>("sse2");
+  return table;
+}
+
+void bias_rows(float* x, int64_t rows, int64_t cols, int64_t ld, const float* bias, BiasThen f) {
+  chosen().bias_rows(x, rows, cols, ld, bias, f);
+}
+void bias_cols(float* x, int64_t rows, int64_t cols, int64_t ld, const float* bias, BiasThen f) {
+  chosen().bias_cols(x, rows, cols, ld, bias, f);
+}
+void vector_sin(const float* x, float* out, int64_t n) {
+  chosen().sin(x, out, n);
+}
+void vector_cos(const float* x, float* out, int64_t n) {
+  chosen().cos(x, out, n);
+}
+const char* vector_isa() {
+  return chosen().isa;
+}
+
+void use_vector_isa(const std::string& isa) {
+  for (const VectorKernelTable* t : supported()) {
+    if (isa == t->isa) {
+      current() = t;
+      return;
+    }
+  }
+  throw Error(fmt::format("vector instruction set '{}' is not one this CPU runs; it runs: {}", isa,
+                          fmt::join(supported_vector_isas(), ", ")));
+}
+
+std::vector<std::string> supported_vector_isas() {
+  std::vector<std::string> names;
+  for (const VectorKernelTable* t : supported())
+    names.emplace_back(t->isa);
+  return names;
+}
+
+}  // namespace hlt

@@ -1,0 +1,143 @@
+// The vector kernels (hlt/simd/vector_math.h), every instruction set this CPU runs: sin and cos within
+// SLEEF's 3.5-ulp bound of the double-precision value, bias passes equal to the scalar formula on every row
+// length (so every tail path runs), NaN propagated by ReLU, padding left alone.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "hlt/simd/vector_math.h"
+#include "hlt/util/error.h"
+
+namespace hlt {
+namespace {
+
+// Restores the default instruction set after each test.
+class VectorMath : public ::testing::TestWithParam<std::string> {
+ protected:
+  void SetUp() override { use_vector_isa(GetParam()); }
+  void TearDown() override { use_vector_isa(supported_vector_isas().front()); }
+};
+
+// The distance between |y| and the next float up: one unit in the last place at y.
+double ulp(double y) {
+  const float a = std::fabs(static_cast<float>(y));
+  return std::nextafter(a, std::numeric_limits<float>::infinity()) - a;
+}
+
+std::vector<float> test_points(int64_t n) {
+  std::vector<float> x(n);
+  for (int64_t i = 0; i < n; ++i)
+    x[i] = static_cast<float>(std::sin(0.7 * i) * 40.0 + 0.01 * i);
+  return x;
+}
+
+TEST_P(VectorMath, SinAndCosAreWithinSleefsBoundOnEveryLength) {
+  EXPECT_EQ(std::string(vector_isa()), GetParam());
+  double worst = 0;
+  for (int64_t n : {0, 1, 3, 4, 5, 7, 8, 9, 15, 16, 17, 31, 33, 1000}) {
+    const std::vector<float> x = test_points(n);
+    std::vector<float> s(n + 1, 7.0f), c(n + 1, 7.0f);
+    vector_sin(x.data(), s.data(), n);
+    vector_cos(x.data(), c.data(), n);
+    for (int64_t i = 0; i < n; ++i) {
+      const double rs = std::sin(static_cast<double>(x[i])), rc = std::cos(static_cast<double>(x[i]));
+      EXPECT_LE(std::fabs(s[i] - rs), 3.5 * ulp(rs)) << "sin(" << x[i] << "), n = " << n;
+      EXPECT_LE(std::fabs(c[i] - rc), 3.5 * ulp(rc)) << "cos(" << x[i] << "), n = " << n;
+      worst = std::max(worst, std::fabs(s[i] - rs) / ulp(rs));
+    }
+    EXPECT_EQ(s[n], 7.0f) << "wrote past the end, n = " << n;
+    EXPECT_EQ(c[n], 7.0f) << "wrote past the end, n = " << n;
+  }
+  EXPECT_GT(worst, 0.0) << "the test points should not all be exact";
+}
+
+TEST_P(VectorMath, SinInPlaceEqualsSinIntoAnotherBuffer) {
+  std::vector<float> x = test_points(37), y(37);
+  vector_sin(x.data(), y.data(), 37);
+  vector_sin(x.data(), x.data(), 37);
+  EXPECT_EQ(x, y);
+}
+
+float reference(float v, BiasThen f) {
+  if (f == BiasThen::kRelu) return v > 0 ? v : 0.0f;
+  if (f == BiasThen::kSin) return static_cast<float>(std::sin(static_cast<double>(v)));
+  return v;
+}
+
+TEST_P(VectorMath, BiasPassesMatchTheScalarFormulaOnEveryShape) {
+  for (BiasThen f : {BiasThen::kNothing, BiasThen::kRelu, BiasThen::kSin}) {
+    for (int64_t cols = 0; cols <= 37; ++cols) {
+      for (int64_t pad : {0, 3}) {
+        const int64_t rows = 3, ld = cols + pad;
+        const std::vector<float> x0 = test_points(rows * ld);
+        const std::vector<float> row_bias = {0.5f, -1.25f, 3.0f};
+        std::vector<float> col_bias = test_points(cols + 1);
+        std::vector<float> by_row = x0, by_col = x0;
+        bias_rows(by_row.data(), rows, cols, ld, row_bias.data(), f);
+        bias_cols(by_col.data(), rows, cols, ld, col_bias.data(), f);
+        for (int64_t r = 0; r < rows; ++r) {
+          for (int64_t c = 0; c < ld; ++c) {
+            const float x = x0[r * ld + c];
+            const std::string where = "row " + std::to_string(r) + " col " + std::to_string(c) + " of " +
+                                      std::to_string(cols) + " (ld " + std::to_string(ld) + ")";
+            if (c >= cols) {
+              EXPECT_EQ(by_row[r * ld + c], x) << "padding changed at " << where;
+              EXPECT_EQ(by_col[r * ld + c], x) << "padding changed at " << where;
+              continue;
+            }
+            const float er = reference(x + row_bias[r], f), ec = reference(x + col_bias[c], f);
+            const double tol = f == BiasThen::kSin ? 3.5 * ulp(er) : 0.0;
+            EXPECT_LE(std::fabs(by_row[r * ld + c] - er), tol) << "bias_rows at " << where;
+            EXPECT_LE(std::fabs(by_col[r * ld + c] - ec), f == BiasThen::kSin ? 3.5 * ulp(ec) : 0.0)
+                << "bias_cols at " << where;
+          }
+        }
+      }
+    }
+  }
+}
+
+TEST_P(VectorMath, ReluPropagatesNanAndClampsInfinities) {
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  // Long enough for whole registers, 4-lane chunks and scalars on every instruction set.
+  std::vector<float> x(23, -1.0f);
+  for (int64_t i = 0; i < 23; i += 3)
+    x[i] = nan;
+  x[1] = inf;
+  x[2] = -inf;
+  std::vector<float> by_row = x, by_col = x, zero(23, 0.0f);
+  bias_rows(by_row.data(), 1, 23, 23, zero.data(), BiasThen::kRelu);
+  bias_cols(by_col.data(), 1, 23, 23, zero.data(), BiasThen::kRelu);
+  for (int64_t i = 0; i < 23; ++i) {
+    for (const std::vector<float>* y : {&by_row, &by_col}) {
+      if (i % 3 == 0) {
+        EXPECT_TRUE(std::isnan((*y)[i])) << "NaN at " << i << " was hidden";
+      } else {
+        EXPECT_EQ((*y)[i], i == 1 ? inf : 0.0f) << "at " << i;
+      }
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(EverySupportedSet, VectorMath, ::testing::ValuesIn(supported_vector_isas()),
+                         [](const auto& info) { return info.param; });
+
+TEST(VectorMathChoice, TheWidestSupportedSetIsTheDefaultAndUnknownNamesAreRefused) {
+  const std::vector<std::string> isas = supported_vector_isas();
+  ASSERT_FALSE(isas.empty());
+  EXPECT_EQ(isas.back(), "sse2");  // every x86-64 CPU
+  EXPECT_EQ(std::string(vector_isa()), isas.front());
+  try {
+    use_vector_isa("neon");
+    FAIL() << "an unknown instruction set was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("'neon'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("sse2"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace hlt
