@@ -2,6 +2,7 @@
 
 #include <ATen/ATen.h>
 
+#include "hlt/simd/vector_math.h"
 #include "hlt/util/error.h"
 
 namespace hlt {
@@ -20,21 +21,53 @@ at::Tensor activate(const at::Tensor& x, Activation a) {
   return a == Activation::kSin ? at::sin(x) : at::relu(x);
 }
 
+namespace {
+
+// True where hlt's vector kernels apply: float, contiguous.
+bool vector_kernels_apply(const at::Tensor& x) {
+  return x.scalar_type() == at::kFloat && x.is_contiguous();
+}
+
+}  // namespace
+
 void activate_out(at::Tensor& out, const at::Tensor& x, Activation a) {
-  if (a == Activation::kSin)
-    at::sin_out(out, x);
-  else
+  if (a == Activation::kSin) {
+    if (vector_kernels_apply(x)) {
+      out.resize_(x.sizes());
+      vector_sin(x.data_ptr<float>(), out.data_ptr<float>(), x.numel());
+    } else {
+      at::sin_out(out, x);
+    }
+  } else {
     at::clamp_min_out(out, x, 0);  // relu
+  }
+}
+
+void cosine_out(at::Tensor& out, const at::Tensor& x) {
+  if (vector_kernels_apply(x) && out.scalar_type() == at::kFloat) {
+    out.resize_(x.sizes());
+    vector_cos(x.data_ptr<float>(), out.data_ptr<float>(), x.numel());
+  } else {
+    at::cos_out(out, x);
+  }
+}
+
+void relu_gradient_of(const at::Tensor& y, at::Tensor& grad) {
+  if (vector_kernels_apply(y) && vector_kernels_apply(grad) && y.numel() == grad.numel()) {
+    relu_gradient(y.data_ptr<float>(), grad.data_ptr<float>(), y.numel());
+  } else {
+    // ReLU's derivative is 1 where its output is positive (autograd's threshold_backward).
+    at::threshold_backward_out(grad, grad, y, 0.0);
+  }
 }
 
 void activation_backward_(at::Tensor& grad, const at::Tensor& x, const at::Tensor& y, Activation a,
                           at::Tensor& scratch) {
   if (a == Activation::kSin) {
-    at::cos_out(scratch, x);
+    cosine_out(scratch, x);
     grad.mul_(scratch);
   } else {
-    // ReLU's derivative is 1 where its output is positive (autograd's threshold_backward).
-    at::threshold_backward_out(grad, grad, y, 0.0);
+    relu_gradient_of(y, grad);
   }
 }
 

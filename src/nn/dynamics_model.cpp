@@ -84,14 +84,14 @@ double DynamicsModelImpl::loss_with_gradient(const torch::Tensor& state, const t
   });
   at::mm_out(gradient_of(fc2->weight), g_mean_.t(), act_);
   at::mm_out(g_act_, g_mean_, fc2->weight);
-  if (options_.activation == Activation::kSin) at::cos_out(cos_, h_);
+  if (options_.activation == Activation::kSin) cosine_out(cos_, h_);
   dispatch_floating(x_, [&](auto tag) {
     using T = decltype(tag);
     auto g = row_map<T>(g_act_);
     if (options_.activation == Activation::kSin)
       g.array() *= row_map<T>(cos_).array();
     else
-      g = (row_map<T>(act_).array() > T(0)).select(g, T(0));
+      relu_gradient_of(act_, g_act_);
     sum_rows_into(g, Eigen::Map<Eigen::Matrix<T, 1, Eigen::Dynamic>>(
                          gradient_of(fc1->bias).template data_ptr<T>(), options_.hidden));
   });

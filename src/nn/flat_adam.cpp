@@ -5,9 +5,9 @@
 #include <cmath>
 
 #include <torch/torch.h>
-#include <Eigen/Core>
 
 #include "hlt/core/checkpoint.h"
+#include "hlt/simd/vector_math.h"
 #include "hlt/util/error.h"
 
 namespace hlt {
@@ -64,13 +64,8 @@ void FlatAdam::step() {
   // an update's matrix products. Values below 1e-38 change nothing a step could show.
   const unsigned int mxcsr = _mm_getcsr();
   _mm_setcsr(mxcsr | 0x8040);  // FTZ | DAZ
-  const int64_t n = param_.numel();
-  Eigen::Map<Eigen::ArrayXf> p(param_.data_ptr<float>(), n), m(exp_avg_.data_ptr<float>(), n),
-      v(exp_avg_sq_.data_ptr<float>(), n);
-  Eigen::Map<const Eigen::ArrayXf> g(grad_.data_ptr<float>(), n);
-  m = m * b1 + c1 * g;
-  v = v * b2 + c2 * g * g;
-  p -= step_size * m / (v.sqrt() * inv_sqrt_bc2 + eps);
+  adam_step(param_.data_ptr<float>(), grad_.data_ptr<float>(), exp_avg_.data_ptr<float>(),
+            exp_avg_sq_.data_ptr<float>(), param_.numel(), {b1, c1, b2, c2, inv_sqrt_bc2, eps, step_size});
   _mm_setcsr(mxcsr);
 }
 

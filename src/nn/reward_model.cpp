@@ -92,7 +92,7 @@ double RewardModelImpl::td_loss_with_gradient(const torch::Tensor& state, const 
   dispatch_floating(x_, [&](auto tag) {
     using T = decltype(tag);
     auto g1 = row_map<T>(g_h1_);
-    g1 = (row_map<T>(h1_).array() > T(0)).select(g1, T(0));
+    relu_gradient_of(h1_, g_h1_);
     sum_rows_into(g1, Eigen::Map<Eigen::Matrix<T, 1, Eigen::Dynamic>>(
                           gradient_of(fc1->bias).template data_ptr<T>(), h));
   });

@@ -107,6 +107,37 @@ struct Kernels {
   static void cos(const float* x, float* out, int64_t n) {
     map_span<V>(x, out, n, [](typename V::Reg v) { return V::cos(v); });
   }
+  static void relu_gradient(const float* y, float* g, int64_t n) {
+    int64_t i = 0;
+    for (; i + V::kWidth <= n; i += V::kWidth)
+      V::store(g + i, V::keep_where_positive(V::load(y + i), V::load(g + i)));
+    if (i < n)
+      V::store_partial(
+          g + i, V::keep_where_positive(V::load_partial(y + i, n - i), V::load_partial(g + i, n - i)), n - i);
+  }
+  static void adam_step(float* p, const float* g, float* m, float* v, int64_t n, const AdamCoefficients& c) {
+    const typename V::Reg b1 = V::set1(c.b1), c1 = V::set1(c.c1), b2 = V::set1(c.b2), c2 = V::set1(c.c2),
+                          inv = V::set1(c.inv_sqrt_bc2), eps = V::set1(c.eps), lr = V::set1(c.step_size);
+    const auto one = [&](int64_t i, int64_t width) {
+      const bool whole = width == V::kWidth;
+      const auto load = [&](const float* q) {
+        return whole ? V::load(q + i) : V::load_partial(q + i, width);
+      };
+      const auto store = [&](float* q, typename V::Reg r) {
+        whole ? V::store(q + i, r) : V::store_partial(q + i, r, width);
+      };
+      const typename V::Reg gi = load(g);
+      const typename V::Reg mi = V::add(V::mul(load(m), b1), V::mul(c1, gi));
+      const typename V::Reg vi = V::add(V::mul(load(v), b2), V::mul(V::mul(c2, gi), gi));
+      store(m, mi);
+      store(v, vi);
+      store(p, V::sub(load(p), V::div(V::mul(lr, mi), V::add(V::mul(V::sqrt(vi), inv), eps))));
+    };
+    int64_t i = 0;
+    for (; i + V::kWidth <= n; i += V::kWidth)
+      one(i, V::kWidth);
+    if (i < n) one(i, n - i);
+  }
 };
 
 }  // namespace

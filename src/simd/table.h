@@ -13,11 +13,13 @@ struct VectorKernelTable {
   void (*bias_cols)(float*, int64_t, int64_t, int64_t, const float*, BiasThen);
   void (*sin)(const float*, float*, int64_t);
   void (*cos)(const float*, float*, int64_t);
+  void (*relu_gradient)(const float*, float*, int64_t);
+  void (*adam_step)(float*, const float*, float*, float*, int64_t, const AdamCoefficients&);
 };
 
 template <typename K>
 VectorKernelTable make_table(const char* isa) {
-  return {isa, &K::bias_rows, &K::bias_cols, &K::sin, &K::cos};
+  return {isa, &K::bias_rows, &K::bias_cols, &K::sin, &K::cos, &K::relu_gradient, &K::adam_step};
 }
 
 // Defined in vector_math_<isa>.cpp; call only where the CPU has the instruction set.

@@ -33,6 +33,12 @@ struct Sse2 {
   static Reg set1(float a) { return _mm_set1_ps(a); }
   static Reg zero() { return _mm_setzero_ps(); }
   static Reg add(Reg a, Reg b) { return _mm_add_ps(a, b); }
+  static Reg sub(Reg a, Reg b) { return _mm_sub_ps(a, b); }
+  static Reg mul(Reg a, Reg b) { return _mm_mul_ps(a, b); }
+  static Reg div(Reg a, Reg b) { return _mm_div_ps(a, b); }
+  static Reg sqrt(Reg a) { return _mm_sqrt_ps(a); }
+  // g where y > 0, else +0.
+  static Reg keep_where_positive(Reg y, Reg g) { return _mm_and_ps(_mm_cmpgt_ps(y, zero()), g); }
   static Reg max(Reg a, Reg b) { return _mm_max_ps(a, b); }
   static Reg sin(Reg a) { return Sleef_sinf4_u35sse2(a); }
   static Reg cos(Reg a) { return Sleef_cosf4_u35sse2(a); }
@@ -75,6 +81,12 @@ void vector_sin(const float* x, float* out, int64_t n) {
 }
 void vector_cos(const float* x, float* out, int64_t n) {
   chosen().cos(x, out, n);
+}
+void relu_gradient(const float* y, float* g, int64_t n) {
+  chosen().relu_gradient(y, g, n);
+}
+void adam_step(float* p, const float* g, float* m, float* v, int64_t n, const AdamCoefficients& c) {
+  chosen().adam_step(p, g, m, v, n, c);
 }
 const char* vector_isa() {
   return chosen().isa;

@@ -23,6 +23,14 @@ struct Avx2 {
   static Reg set1(float a) { return _mm256_set1_ps(a); }
   static Reg zero() { return _mm256_setzero_ps(); }
   static Reg add(Reg a, Reg b) { return _mm256_add_ps(a, b); }
+  static Reg sub(Reg a, Reg b) { return _mm256_sub_ps(a, b); }
+  static Reg mul(Reg a, Reg b) { return _mm256_mul_ps(a, b); }
+  static Reg div(Reg a, Reg b) { return _mm256_div_ps(a, b); }
+  static Reg sqrt(Reg a) { return _mm256_sqrt_ps(a); }
+  // g where y > 0, else +0.
+  static Reg keep_where_positive(Reg y, Reg g) {
+    return _mm256_and_ps(_mm256_cmp_ps(y, zero(), _CMP_GT_OQ), g);
+  }
   static Reg max(Reg a, Reg b) { return _mm256_max_ps(a, b); }
   static Reg sin(Reg a) { return Sleef_sinf8_u35avx2(a); }
   static Reg cos(Reg a) { return Sleef_cosf8_u35avx2(a); }

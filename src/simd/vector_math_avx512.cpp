@@ -20,6 +20,14 @@ struct Avx512 {
   static Reg set1(float a) { return _mm512_set1_ps(a); }
   static Reg zero() { return _mm512_setzero_ps(); }
   static Reg add(Reg a, Reg b) { return _mm512_add_ps(a, b); }
+  static Reg sub(Reg a, Reg b) { return _mm512_sub_ps(a, b); }
+  static Reg mul(Reg a, Reg b) { return _mm512_mul_ps(a, b); }
+  static Reg div(Reg a, Reg b) { return _mm512_div_ps(a, b); }
+  static Reg sqrt(Reg a) { return _mm512_maskz_sqrt_ps(0xFFFF, a); }  // see max()
+  // g where y > 0, else +0.
+  static Reg keep_where_positive(Reg y, Reg g) {
+    return _mm512_maskz_mov_ps(_mm512_cmp_ps_mask(y, zero(), _CMP_GT_OQ), g);
+  }
   // The masked form: _mm512_max_ps trips GCC 12's -Wmaybe-uninitialized (its _mm512_undefined_ps).
   static Reg max(Reg a, Reg b) { return _mm512_maskz_max_ps(0xFFFF, a, b); }
   static Reg sin(Reg a) { return Sleef_sinf16_u35avx512f(a); }

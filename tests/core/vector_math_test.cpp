@@ -122,6 +122,43 @@ TEST_P(VectorMath, ReluPropagatesNanAndClampsInfinities) {
   }
 }
 
+TEST_P(VectorMath, ReluGradientKeepsTheGradientWhereTheOutputIsPositive) {
+  for (int64_t n : {0, 1, 5, 16, 23, 40}) {
+    const std::vector<float> y = test_points(n);
+    std::vector<float> g = test_points(n + 1);
+    const std::vector<float> g0 = g;
+    relu_gradient(y.data(), g.data(), n);
+    for (int64_t i = 0; i < n; ++i)
+      EXPECT_EQ(g[i], y[i] > 0 ? g0[i] : 0.0f) << "at " << i << " of " << n;
+    EXPECT_EQ(g[n], g0[n]) << "wrote past the end";
+  }
+}
+
+// torch.optim.Adam's float arithmetic, one value at a time, in the order the kernel promises.
+void adam_reference(float& p, float g, float& m, float& v, const AdamCoefficients& c) {
+  m = m * c.b1 + c.c1 * g;
+  v = v * c.b2 + (c.c2 * g) * g;
+  const float denom = std::sqrt(v) * c.inv_sqrt_bc2 + c.eps;
+  p = p - (c.step_size * m) / denom;
+}
+
+TEST_P(VectorMath, AdamStepGivesTheScalarArithmeticsBitsOnEveryLength) {
+  const AdamCoefficients c{0.9f, 0.1f, 0.999f, 0.001f, 1.3f, 1e-8f, 3e-4f};
+  for (int64_t n : {1, 7, 16, 33, 100}) {
+    std::vector<float> p = test_points(n), m(n, 0.01f), v(n, 0.02f);
+    const std::vector<float> g = test_points(n + 3);
+    std::vector<float> rp = p, rm = m, rv = v;
+    for (int step = 0; step < 3; ++step) {
+      adam_step(p.data(), g.data() + 3, m.data(), v.data(), n, c);
+      for (int64_t i = 0; i < n; ++i)
+        adam_reference(rp[i], g[i + 3], rm[i], rv[i], c);
+    }
+    EXPECT_EQ(p, rp) << "n = " << n;
+    EXPECT_EQ(m, rm) << "n = " << n;
+    EXPECT_EQ(v, rv) << "n = " << n;
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(EverySupportedSet, VectorMath, ::testing::ValuesIn(supported_vector_isas()),
                          [](const auto& info) { return info.param; });
 

@@ -25,6 +25,17 @@ void bias_cols(float* x, int64_t rows, int64_t cols, int64_t ld, const float* bi
 void vector_sin(const float* x, float* out, int64_t n);
 void vector_cos(const float* x, float* out, int64_t n);
 
+// g[i] = y[i] > 0 ? g[i] : 0: ReLU's backward pass from its output y (exact on every instruction set).
+void relu_gradient(const float* y, float* g, int64_t n);
+
+// One Adam step over flat buffers, torch.optim.Adam's float arithmetic in its order, without fused
+// multiply-adds (so every instruction set gives the same bits): m = b1 m + c1 g, v = b2 v + c2 g g,
+// p -= step_size m / (sqrt(v) inv_sqrt_bc2 + eps).
+struct AdamCoefficients {
+  float b1, c1, b2, c2, inv_sqrt_bc2, eps, step_size;
+};
+void adam_step(float* p, const float* g, float* m, float* v, int64_t n, const AdamCoefficients& c);
+
 // The instruction set in use: "avx512", "avx2" or "sse2".
 const char* vector_isa();
 // Uses the named instruction set's kernels from now on (tests and benchmarks compare them); throws
