@@ -17,6 +17,7 @@
 #include "hlt/core/checkpoint.h"
 #include "hlt/core/runtime.h"
 #include "hlt/data/replay_buffer.h"
+#include "hlt/simd/vector_math.h"
 #include "hlt/util/blas_kernel.h"
 #include "hlt/util/directory_lock.h"
 #include "hlt/util/error.h"
@@ -50,9 +51,10 @@ enum Stream : uint64_t {
 };
 
 // The header of config.yaml: what the run's numbers depend on besides its settings. The same seed gives
-// the same numbers only with the same BLAS kernel.
+// the same numbers only with the same BLAS kernel and the same vector instruction set (sin and cos differ
+// between SLEEF's builds in their last bits).
 std::string run_notes() {
-  return "blas: " + blas_kernel().summary();
+  return "blas: " + blas_kernel().summary() + "; vector: " + vector_isa();
 }
 
 struct Stats {
@@ -704,7 +706,8 @@ std::unique_ptr<Trainer> Trainer::resume(const std::string& run_dir, std::option
   const std::string old_config = read_file(cfg.string());
   if (old_config.rfind("# " + notes + "\n", 0) != 0) {
     fmt::print(stderr,
-               "warning: {}'s {} records another BLAS kernel or none; the resumed part's numbers may "
+               "warning: {}'s {} records another BLAS kernel or vector instruction set; the resumed part's "
+               "numbers may "
                "differ in their last digits from an uninterrupted run's\n  now: {}\n",
                run_dir, kConfigFile, notes);
   }

@@ -23,6 +23,7 @@
 #include "agents/trainer.h"
 #include "envs/registry.h"
 #include "experiments/cli_checks.h"
+#include "hlt/simd/vector_math.h"
 #include "hlt/util/blas_kernel.h"
 #include "hlt/util/error.h"
 #include "hlt/util/files.h"
@@ -158,7 +159,7 @@ int run(int argc, char** argv) {
              imitation ? fmt::format("{} iterations", config.get_int("imitation.iterations"))
                        : fmt::format("{} agent steps", config.get_int("train.agent_steps")),
              config.get_int("train.frame_skip"), out);
-  fmt::print("blas: {}\n", blas_kernel().summary());
+  fmt::print("blas: {}\nvector kernels: {}\n", blas_kernel().summary(), vector_isa());
   trainer->run(progress);
   print_summary(*trainer);
   return 0;

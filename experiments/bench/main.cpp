@@ -9,6 +9,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include "hlt/simd/vector_math.h"
 #include "hlt/util/blas_kernel.h"
 #include "hlt/util/error.h"
 #include "hlt/util/main_guard.h"
@@ -74,6 +75,7 @@ int main(int argc, char** argv) {
     const std::string filter = filter_flag != nullptr ? filter_flag : "";
     benchmark::AddCustomContext("cpu", cpu_model());
     benchmark::AddCustomContext("blas", hlt::blas_kernel().summary());
+    benchmark::AddCustomContext("vector kernels", hlt::vector_isa());
     benchmark::Initialize(&argc, argv);
     if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 2;  // bad input, as in every tool
     // A filter that matches nothing (or does not compile) runs nothing: that is an error, not a report.

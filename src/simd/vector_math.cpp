@@ -1,6 +1,8 @@
 // The SSE2 kernels (every x86-64 CPU has SSE2) and the choice of the kernel table.
 #include <emmintrin.h>
+
 #include <sleef.h>
+#include <cstdlib>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -54,8 +56,24 @@ std::vector<const VectorKernelTable*> supported() {
   return tables;
 }
 
+const VectorKernelTable* by_name(const std::string& isa) {
+  for (const VectorKernelTable* t : supported())
+    if (isa == t->isa) return t;
+  throw Error(fmt::format("vector instruction set '{}' is not one this CPU runs; it runs: {}", isa,
+                          fmt::join(supported_vector_isas(), ", ")));
+}
+
+// HLT_VECTOR_ISA, where set, overrides the choice (to reproduce on this CPU the numbers of a narrower one).
 const VectorKernelTable*& current() {
-  static const VectorKernelTable* table = supported().front();
+  static const VectorKernelTable* table = [] {
+    const char* forced = std::getenv("HLT_VECTOR_ISA");
+    if (forced == nullptr || *forced == '\0') return supported().front();
+    try {
+      return by_name(forced);
+    } catch (const Error& e) {
+      throw Error(fmt::format("HLT_VECTOR_ISA: {}", e.what()));
+    }
+  }();
   return table;
 }
 
@@ -93,14 +111,7 @@ const char* vector_isa() {
 }
 
 void use_vector_isa(const std::string& isa) {
-  for (const VectorKernelTable* t : supported()) {
-    if (isa == t->isa) {
-      current() = t;
-      return;
-    }
-  }
-  throw Error(fmt::format("vector instruction set '{}' is not one this CPU runs; it runs: {}", isa,
-                          fmt::join(supported_vector_isas(), ", ")));
+  current() = by_name(isa);
 }
 
 std::vector<std::string> supported_vector_isas() {

@@ -14,14 +14,16 @@ for method in sac hybrid-stochastic hybrid-deterministic mppi mpc-deterministic;
   "$train" "${args[@]}" --method "$method" --steps 400 --out "$work/$method" > /dev/null
   awk -F, 'NR > 1 && $3 !~ /^time\// {print $2 "," $3 "," $4}' "$work/$method/scalars.csv" > "$out/$method.csv"
 done
-"$train" "${args[@]}" --method hybrid-stochastic --steps 200 --out "$work/old" > /dev/null
-mkdir -p "$out/old_checkpoint"
-cp "$work/old/config.yaml" "$work/old/checkpoint.pt" "$work/old/scalars.csv" "$out/old_checkpoint/"
-# config.yaml's first line: "# blas: <OpenBLAS config>, core <core> (<origin>)".
-blas=$(head -1 "$work/old/config.yaml")
+# old_checkpoint/ stays as an older version of the code wrote it; what this code logs when it resumes it:
+cp -r "$(dirname "$0")/old_checkpoint" "$work/old"
+"$train" --resume "$work/old" --steps 400 --no-progress > /dev/null 2>&1
+awk -F, 'NR > 1 && $3 !~ /^time\// {print $2 "," $3 "," $4}' "$work/old/scalars.csv" > "$out/old_checkpoint_resumed.csv"
+# config.yaml's first line: "# blas: <OpenBLAS config>, core <core> (<origin>); vector: <instruction set>".
+blas=$(head -1 "$work/sac/config.yaml")
+vector=${blas##*; vector: }
 config=${blas#\# blas: }
 config=${config%%, core *}
 core=${blas##*, core }
 core=${core%% *}
-printf 'core %s\nconfig %s\n' "$core" "$config" > "$out/kernel.txt"
+printf 'core %s\nconfig %s\nvector %s\n' "$core" "$config" "$vector" > "$out/kernel.txt"
 echo "recorded into $out with $train"
