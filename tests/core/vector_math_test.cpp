@@ -2,10 +2,16 @@
 // SLEEF's 3.5-ulp bound of the double-precision value, bias passes equal to the scalar formula on every row
 // length (so every tail path runs), NaN propagated by ReLU, padding left alone.
 #include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <climits>
+#include <cstdio>
+#include <cstdlib>
 
 #include <cmath>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "hlt/simd/vector_math.h"
@@ -174,6 +180,35 @@ TEST(VectorMathChoice, TheWidestSupportedSetIsTheDefaultAndUnknownNamesAreRefuse
     EXPECT_NE(std::string(e.what()).find("'neon'"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("sse2"), std::string::npos) << e.what();
   }
+}
+
+// Not a test of its own: prints this process's instruction set for the test below, which runs it as a child.
+TEST(VectorMathChoice, ReportForParent) {
+  if (std::getenv("HLT_VECTOR_REPORT") == nullptr) GTEST_SKIP() << "runs only as a child of the test below";
+  std::printf("isa=%s\n", vector_isa());
+}
+
+// This binary with HLT_VECTOR_ISA set to `value`: its exit status and what it printed.
+std::pair<int, std::string> child_with(const std::string& value) {
+  char self[PATH_MAX] = {};
+  EXPECT_GT(::readlink("/proc/self/exe", self, sizeof self - 1), 0);
+  const std::string command = "env HLT_VECTOR_ISA=" + value + " HLT_VECTOR_REPORT=1 " + self +
+                              " --gtest_filter=VectorMathChoice.ReportForParent 2>&1";
+  std::string out;
+  FILE* pipe = ::popen(command.c_str(), "r");
+  char buf[4096];
+  while (size_t k = std::fread(buf, 1, sizeof buf, pipe))
+    out.append(buf, k);
+  return {::pclose(pipe), out};
+}
+
+TEST(VectorMathChoice, TheEnvironmentVariableOverridesTheChoiceAndIsChecked) {
+  const auto [status, out] = child_with("sse2");
+  EXPECT_EQ(status, 0) << out;
+  EXPECT_NE(out.find("isa=sse2"), std::string::npos) << out;
+  const auto [bad_status, bad_out] = child_with("neon");
+  EXPECT_NE(bad_status, 0) << bad_out;
+  EXPECT_NE(bad_out.find("HLT_VECTOR_ISA: vector instruction set 'neon'"), std::string::npos) << bad_out;
 }
 
 }  // namespace
