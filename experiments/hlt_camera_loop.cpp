@@ -6,7 +6,6 @@
 //
 //   hlt_camera_loop --env block_stack_camera --policy scripted:block_stack_camera --episodes 5 --seed 0
 //                   [--max-steps T] [--image FILE.png]
-#include <chrono>
 #include <cstdio>
 #include <memory>
 #include <optional>
@@ -49,23 +48,13 @@ int run(const Options& o) {
   std::unique_ptr<PolicySource> policy = make_policy_for(o.policy, *env, derive_seed(o.seed, 1));
   fmt::print("env {}, policy {}, seed {}\n", o.env, policy->describe(), o.seed);
   PerceptionReport report(*camera);
-  using Clock = std::chrono::steady_clock;
-  Clock::time_point start = Clock::now();
-  double start_cpu = thread_cpu_ms();
   for (int ep = 0; ep < o.episodes; ++ep) {
     auto on_reset = [&] {
-      report.add(-1.0, -1.0);
       if (ep == 0 && !o.image.empty())
         check(cv::imwrite(o.image, camera->last_image()), "cannot write {}", o.image);
-      start = Clock::now();
-      start_cpu = thread_cpu_ms();
+      report.after_reset();
     };
-    auto on_step = [&](const Transition&) {
-      report.add(thread_cpu_ms() - start_cpu,
-                 std::chrono::duration<double, std::milli>(Clock::now() - start).count());
-      start = Clock::now();
-      start_cpu = thread_cpu_ms();
-    };
+    auto on_step = [&](const Transition&) { report.after_step(); };
     const EpisodeStats s =
         run_episode(*env, *policy, ep == 0 ? std::optional<uint64_t>(o.seed) : std::nullopt, on_step,
                     on_reset, o.max_steps);

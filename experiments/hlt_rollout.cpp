@@ -7,7 +7,6 @@
 //               [--frame-skip K] [--csv traj.csv] [--video out.mp4] [--strip out.png] [--demos out.hltd]
 //               [--perception]
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <iostream>
 #include <memory>
@@ -218,9 +217,6 @@ int run(Options o, bool frame_skip_given) {
           o.env);
     perception.emplace(*camera);
   }
-  using Clock = std::chrono::steady_clock;
-  Clock::time_point step_start = Clock::now();
-  double step_start_cpu = thread_cpu_ms();
   fmt::print("env {} (observation {}, action {}, limit {} steps{}), policy {}, seed {}\n", o.env,
              env->observation_dim(), env->action_dim(), env->max_episode_steps(),
              o.frame_skip != 1 ? fmt::format(", frame skip {}", o.frame_skip) : "", policy->describe(),
@@ -246,15 +242,12 @@ int run(Options o, bool frame_skip_given) {
     const bool record = recording && ep < o.record_episodes;
     std::vector<DemoStep> demo_steps;
     auto on_reset = [&]() {
-      if (perception) perception->add(-1.0, -1.0);
       if (record) recorder.add(env->render(o.width, o.height));
-      step_start = Clock::now();
-      step_start_cpu = thread_cpu_ms();
+      if (perception) perception->after_reset();
     };
     auto on_step = [&](const Transition& t) {
-      if (perception)
-        perception->add(thread_cpu_ms() - step_start_cpu,
-                        std::chrono::duration<double, std::milli>(Clock::now() - step_start).count());
+      // The step's timing is taken before this tool's own work on it (CSV, frames, demonstrations).
+      if (perception) perception->after_step();
       if (!o.csv.empty()) {
         csv << ep << ',' << t.step;
         for (Eigen::Index i = 0; i < t.observation.size(); ++i)
@@ -268,8 +261,7 @@ int run(Options o, bool frame_skip_given) {
       if (demos)
         demo_steps.push_back({t.observation, t.action, t.result.observation, t.result.reward,
                               t.result.terminated, t.result.truncated});
-      step_start = Clock::now();
-      step_start_cpu = thread_cpu_ms();
+      if (perception) perception->restart_clock();
     };
     // The first episode starts from the seed; later ones continue the environment's generator.
     const EpisodeStats s =

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <ctime>
 #include <string>
@@ -56,8 +57,26 @@ class PerceptionReport {
         misses_(env.objects().size(), 0),
         colour_(env.objects().size(), 0) {}
 
-  // After a reset or a step: the camera's latest frame. `step_ms` is the whole control step's CPU time
-  // (policy, then simulation, rendering, perception), `wall_ms` its wall time; negative after a reset.
+  // Call as the last thing after each reset and after each step (an episode loop's callbacks): takes the
+  // camera's latest frame and, after a step, the control step's CPU and wall time since the previous call
+  // (policy, then simulation, rendering, perception), so work a tool does between steps is not counted.
+  void after_reset() {
+    add(-1.0, -1.0);
+    restart_clock();
+  }
+  void after_step() {
+    add(thread_cpu_ms() - cpu_start_,
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall_start_).count());
+    restart_clock();
+  }
+
+  // Starts the next step's timing again: after work of the tool's own that follows after_step().
+  void restart_clock() {
+    wall_start_ = std::chrono::steady_clock::now();
+    cpu_start_ = thread_cpu_ms();
+  }
+
+  // The camera's latest frame; `step_ms` and `wall_ms` are negative after a reset.
   void add(double step_ms, double wall_ms) {
     const robot::PerceptionRecord& r = env_.last_perception();
     for (size_t i = 0; i < position_.size(); ++i) {
@@ -110,6 +129,8 @@ class PerceptionReport {
   }
 
  private:
+  std::chrono::steady_clock::time_point wall_start_ = std::chrono::steady_clock::now();
+  double cpu_start_ = thread_cpu_ms();
   const robot::CameraObserved& env_;
   std::vector<std::vector<double>> position_, yaw_;
   std::vector<int> misses_, colour_;

@@ -84,7 +84,8 @@ double RewardModelImpl::td_loss_with_gradient(const torch::Tensor& state, const 
     Eigen::Map<Row>(gradient_of(fc3->weight).template data_ptr<T>(), h) = g_r.transpose() * row_map<T>(h2_);
     gradient_of(fc3->bias).template data_ptr<T>()[0] = g_r.sum();
     auto g2 = row_map<T>(sized(g_h2_, {batch, h}));
-    g2 = ((g_r * w3).array() * (row_map<T>(h2_).array() > T(0)).template cast<T>()).matrix();
+    g2.noalias() = g_r * w3;
+    relu_gradient_of(h2_, g_h2_);
     sum_rows_into(g2, Eigen::Map<Row>(gradient_of(fc2->bias).template data_ptr<T>(), h));
   });
   at::mm_out(gradient_of(fc2->weight), g_h2_.t(), h1_);

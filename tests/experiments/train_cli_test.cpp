@@ -117,6 +117,34 @@ TEST(TrainCli, RejectsBadInputWithClearMessages) {
   EXPECT_NE(r.output.find("--fps must be a finite number, got 'nan'"), std::string::npos) << r.output;
 }
 
+// The line of a tool's output that starts with `prefix` (after leading spaces), or "".
+std::string line_starting(const std::string& output, const std::string& prefix) {
+  std::istringstream in(output);
+  for (std::string line; std::getline(in, line);) {
+    const auto first = line.find_first_not_of(' ');
+    if (first != std::string::npos && line.compare(first, prefix.size(), prefix) == 0) return line;
+  }
+  return "";
+}
+
+TEST(PerceptionReport, CameraLoopAndRolloutReportTheSameEpisodesAndTimeEveryStep) {
+  const std::string args = " --env block_push_camera --policy random --episodes 2 --max-steps 4 --seed 1";
+  const Result loop = run(std::string(HLT_CAMERA_LOOP_BIN) + args);
+  const Result rollout = run(std::string(HLT_ROLLOUT_BIN) + args + " --perception");
+  ASSERT_EQ(loop.code, 0) << loop.output;
+  ASSERT_EQ(rollout.code, 0) << rollout.output;
+  for (const Result* r : {&loop, &rollout}) {
+    // Two resets and eight steps: ten frames, eight of them timed.
+    EXPECT_NE(r->output.find("perception over 10 frames (8 timed control steps)"), std::string::npos)
+        << r->output;
+    for (const char* row : {"render ", "perceive ", "total ", "total, wall clock "})
+      EXPECT_NE(line_starting(r->output, row), "") << row << " missing in\n" << r->output;
+  }
+  const std::string errors = line_starting(loop.output, "all ");
+  EXPECT_NE(errors, "") << loop.output;
+  EXPECT_EQ(errors, line_starting(rollout.output, "all ")) << "the two tools ran different episodes";
+}
+
 TEST(RolloutCli, ReportsTheTasksSuccess) {
   // The scripted stacking expert stacks (block_stack_test); a task without a criterion prints none.
   Result r =
