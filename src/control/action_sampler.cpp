@@ -24,7 +24,7 @@ PolicySampler::PolicySampler(GaussianPolicy policy, bool tanh_correction)
 
 void PolicySampler::begin(int64_t samples, const at::Tensor& plan) {
   forward_.prepare(samples);
-  eps_ = torch::randn({plan.size(0), plan.size(1), samples}, plan.options());
+  eps_ = torch::randn({plan.size(0), samples, plan.size(1)}, plan.options());
   if (!log_std_.defined() || log_std_.sizes() != eps_.sizes() ||
       log_std_.scalar_type() != eps_.scalar_type()) {
     log_std_ = torch::empty_like(eps_);
@@ -36,31 +36,32 @@ void PolicySampler::sample(int64_t t, const at::Tensor& states, const at::Tensor
   forward_.forward(states);
   dispatch_floating(actions, [&](auto tag) {
     using T = decltype(tag);
-    const int64_t m = actions.size(0), K = actions.size(1);
+    const int64_t K = actions.size(0), m = actions.size(1);
     const auto mean = row_map<T>(forward_.mean()).array();
     const auto ls = row_map<T>(forward_.log_std()).array();
-    block<T>(log_std_, t * m * K, m, K) = ls.matrix();
+    block<T>(log_std_, t * K * m, K, m) = ls.matrix();
     // v = tanh(mu + sigma eps)
-    row_map<T>(actions) = (mean + ls.exp() * block<T>(eps_, t * m * K, m, K).array()).tanh().matrix();
+    row_map<T>(actions) = (mean + ls.exp() * block<T>(eps_, t * K * m, K, m).array()).tanh().matrix();
   });
 }
 
 at::Tensor PolicySampler::log_density(const at::Tensor& actions) {
-  const int64_t H = actions.size(0), m = actions.size(1), K = actions.size(2);
+  const int64_t H = actions.size(0), K = actions.size(1), m = actions.size(2);
   at::Tensor out = torch::empty({H, K}, actions.options());
   dispatch_floating(actions, [&](auto tag) {
     using T = decltype(tag);
     for (int64_t t = 0; t < H; ++t) {
-      const auto eps = block<T>(eps_, t * m * K, m, K).array(),
-                 ls = block<T>(log_std_, t * m * K, m, K).array(),
-                 v = block<T>(actions, t * m * K, m, K).array();
+      const auto eps = block<T>(eps_, t * K * m, K, m).array(),
+                 ls = block<T>(log_std_, t * K * m, K, m).array(),
+                 v = block<T>(actions, t * K * m, K, m).array();
       // u - mu = sigma eps, so the Gaussian term is -eps^2 / 2 - log sigma - log(2 pi) / 2 per dimension; the
       // tanh change of variables (if asked for) subtracts log(1 - v^2 + 1e-6).
       const auto gauss = T(-0.5) * eps.square() - ls - T(kHalfLog2Pi);
       if (tanh_correction_) {
-        block<T>(out, t * K, 1, K) = (gauss - (T(1 + 1e-6) - v.square()).log()).colwise().sum().matrix();
+        block<T>(out, t * K, 1, K) =
+            (gauss - (T(1 + 1e-6) - v.square()).log()).rowwise().sum().matrix().transpose();
       } else {
-        block<T>(out, t * K, 1, K) = gauss.colwise().sum().matrix();
+        block<T>(out, t * K, 1, K) = gauss.rowwise().sum().matrix().transpose();
       }
     }
   });
@@ -73,9 +74,9 @@ FilteredNoiseSampler::FilteredNoiseSampler(double sigma, double filter) : sigma_
 }
 
 void FilteredNoiseSampler::begin(int64_t samples, const at::Tensor& plan) {
-  z_ = torch::randn({plan.size(0), plan.size(1), samples}, plan.options());
-  if (!eta_.defined() || eta_.size(1) != samples || eta_.scalar_type() != plan.scalar_type()) {
-    eta_ = torch::empty({plan.size(1), samples}, plan.options());
+  z_ = torch::randn({plan.size(0), samples, plan.size(1)}, plan.options());
+  if (!eta_.defined() || eta_.size(0) != samples || eta_.scalar_type() != plan.scalar_type()) {
+    eta_ = torch::empty({samples, plan.size(1)}, plan.options());
   }
   dispatch_floating(eta_, [&](auto tag) {
     using T = decltype(tag);
@@ -87,25 +88,26 @@ void FilteredNoiseSampler::sample(int64_t t, const at::Tensor& states, const at:
                                   at::Tensor& actions) {
   dispatch_floating(actions, [&](auto tag) {
     using T = decltype(tag);
-    const int64_t m = actions.size(0), K = actions.size(1);
+    const int64_t K = actions.size(0), m = actions.size(1);
     auto eta = row_map<T>(eta_);
-    Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, 1>> a(plan_t.data_ptr<T>(), m);
-    eta = T(filter_) * eta + T((1.0 - filter_) * sigma_) * block<T>(z_, t * m * K, m, K);
-    row_map<T>(actions) = (eta.colwise() + a).array().max(T(-1)).min(T(1)).matrix();
+    Eigen::Map<const Eigen::Matrix<T, 1, Eigen::Dynamic>> a(plan_t.data_ptr<T>(), m);
+    eta = T(filter_) * eta + T((1.0 - filter_) * sigma_) * block<T>(z_, t * K * m, K, m);
+    row_map<T>(actions) = (eta.rowwise() + a).array().max(T(-1)).min(T(1)).matrix();
   });
 }
 
 at::Tensor FilteredNoiseSampler::log_density(const at::Tensor& actions) {
-  const int64_t H = actions.size(0), m = actions.size(1), K = actions.size(2);
+  const int64_t H = actions.size(0), K = actions.size(1), m = actions.size(2);
   at::Tensor out = torch::empty({H, K}, actions.options());
   dispatch_floating(actions, [&](auto tag) {
     using T = decltype(tag);
     for (int64_t t = 0; t < H; ++t) {
       block<T>(out, t * K, 1, K) =
-          (T(-0.5) * block<T>(z_, t * m * K, m, K).array().square() - T(std::log(sigma_) + kHalfLog2Pi))
-              .colwise()
+          (T(-0.5) * block<T>(z_, t * K * m, K, m).array().square() - T(std::log(sigma_) + kHalfLog2Pi))
+              .rowwise()
               .sum()
-              .matrix();
+              .matrix()
+              .transpose();
     }
   });
   return out;
@@ -129,55 +131,55 @@ void MixtureSampler::begin(int64_t samples, const at::Tensor& plan) {
   first_->begin(first_samples_, plan);
   second_->begin(second_samples_, plan);
   const int64_t m = plan.size(1);
-  if (!actions_first_.defined() || actions_first_.size(1) != first_samples_ || actions_first_.size(0) != m ||
+  if (!actions_first_.defined() || actions_first_.size(0) != first_samples_ || actions_first_.size(1) != m ||
       actions_first_.scalar_type() != plan.scalar_type()) {
-    actions_first_ = torch::empty({m, first_samples_}, plan.options());
-    actions_second_ = torch::empty({m, second_samples_}, plan.options());
+    actions_first_ = torch::empty({first_samples_, m}, plan.options());
+    actions_second_ = torch::empty({second_samples_, m}, plan.options());
   }
   horizon_ = plan.size(0);
 }
 
 void MixtureSampler::sample(int64_t t, const at::Tensor& states, const at::Tensor& plan_t,
                             at::Tensor& actions) {
-  const at::Tensor s1 = states.narrow(1, 0, first_samples_).contiguous();
-  const at::Tensor s2 = states.narrow(1, first_samples_, second_samples_).contiguous();
+  // Sample-major batches: each proposal's rollouts are a contiguous block of rows.
+  const at::Tensor s1 = states.narrow(0, 0, first_samples_);
+  const at::Tensor s2 = states.narrow(0, first_samples_, second_samples_);
   first_->sample(t, s1, plan_t, actions_first_);
   second_->sample(t, s2, plan_t, actions_second_);
-  actions.narrow(1, 0, first_samples_).copy_(actions_first_);
-  actions.narrow(1, first_samples_, second_samples_).copy_(actions_second_);
+  actions.narrow(0, 0, first_samples_).copy_(actions_first_);
+  actions.narrow(0, first_samples_, second_samples_).copy_(actions_second_);
   // Kept for the prior in log_density().
-  const int64_t K = states.size(1);
-  if (!states_.defined() || states_.size(0) != states.size(0) || states_.size(1) != horizon_ * K ||
+  const int64_t K = states.size(0);
+  if (!states_.defined() || states_.size(1) != states.size(1) || states_.size(0) != horizon_ * K ||
       states_.scalar_type() != states.scalar_type()) {
-    states_ = torch::empty({states.size(0), horizon_ * K}, states.options());
+    states_ = torch::empty({horizon_ * K, states.size(1)}, states.options());
   }
-  states_.narrow(1, t * K, K).copy_(states);
+  states_.narrow(0, t * K, K).copy_(states);
 }
 
 at::Tensor MixtureSampler::log_density(const at::Tensor& actions) {
-  const int64_t H = actions.size(0), m = actions.size(1), K = actions.size(2);
-  check(states_.defined() && states_.size(1) == H * K,
+  const int64_t H = actions.size(0), K = actions.size(1), m = actions.size(2);
+  check(states_.defined() && states_.size(0) == H * K,
         "mixture sampler: log_density before a full sampling pass");
-  // The prior at every rollout state of every step in one pass; [m, H K] -> [H, m, K].
+  // The prior at every rollout state of every step in one pass: rows t K ... t K + K - 1 are step t's.
   prior_.prepare(H * K);
   prior_.forward(states_);
-  const at::Tensor mean = prior_.mean().view({m, H, K}).permute({1, 0, 2}).contiguous();
-  const at::Tensor log_std = prior_.log_std().view({m, H, K}).permute({1, 0, 2}).contiguous();
   at::Tensor out = torch::empty({H, K}, actions.options());
   dispatch_floating(actions, [&](auto tag) {
     using T = decltype(tag);
     const T edge = T(1) - T(1e-6);
     for (int64_t t = 0; t < H; ++t) {
-      const auto v = block<T>(actions, t * m * K, m, K).array().max(-edge).min(edge);
-      const auto mu = block<T>(mean, t * m * K, m, K).array(),
-                 ls = block<T>(log_std, t * m * K, m, K).array();
+      const auto v = block<T>(actions, t * K * m, K, m).array().max(-edge).min(edge);
+      const auto mu = row_map<T>(prior_.mean()).middleRows(t * K, K).array(),
+                 ls = row_map<T>(prior_.log_std()).middleRows(t * K, K).array();
       // atanh(v) = log((1 + v) / (1 - v)) / 2
       const auto u = T(0.5) * ((T(1) + v) / (T(1) - v)).log();
       const auto gauss = T(-0.5) * ((u - mu) * (-ls).exp()).square() - ls - T(kHalfLog2Pi);
       if (tanh_correction_) {
-        block<T>(out, t * K, 1, K) = (gauss - (T(1 + 1e-6) - v.square()).log()).colwise().sum().matrix();
+        block<T>(out, t * K, 1, K) =
+            (gauss - (T(1 + 1e-6) - v.square()).log()).rowwise().sum().matrix().transpose();
       } else {
-        block<T>(out, t * K, 1, K) = gauss.colwise().sum().matrix();
+        block<T>(out, t * K, 1, K) = gauss.rowwise().sum().matrix().transpose();
       }
     }
   });

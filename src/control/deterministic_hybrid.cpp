@@ -79,13 +79,13 @@ const AdjointTrace& DeterministicHybrid::analyse(const at::Tensor& state) {
   if (!X_.defined() || X_.scalar_type() != opts.dtype()) {
     X_ = torch::empty({H + 1, n}, opts);
     A_ = torch::empty({H, m}, opts);
-    // A batch of one is a column [n, 1]: the same memory as a row of X (and of A).
-    x_cols_.clear();
-    a_cols_.clear();
+    // A batch of one is a row [1, n] of X (and [1, m] of A).
+    x_rows_.clear();
+    a_rows_.clear();
     for (int64_t t = 0; t <= H; ++t)
-      x_cols_.push_back(X_[t].view({n, 1}));
+      x_rows_.push_back(X_[t].view({1, n}));
     for (int64_t t = 0; t < H; ++t)
-      a_cols_.push_back(A_[t].view({m, 1}));
+      a_rows_.push_back(A_[t].view({1, m}));
   }
   AdjointTrace& tr = trace_;
 
@@ -102,14 +102,14 @@ const AdjointTrace& DeterministicHybrid::analyse(const at::Tensor& state) {
       row_map<T>(A_).setZero();
       for (int64_t t = 0; t < H; ++t) {
         if (has_policy) {
-          policy_forward_->forward(x_cols_[t]);
-          row_map<T>(a_cols_[t]) = row_map<T>(policy_forward_->mean()).array().tanh().matrix();
+          policy_forward_->forward(x_rows_[t]);
+          row_map<T>(a_rows_[t]) = row_map<T>(policy_forward_->mean()).array().tanh().matrix();
           if (t == 0) {
-            log_std0 = row_map<T>(policy_forward_->log_std()).col(0).template cast<double>();
-            tr.mean_raw = row_map<T>(policy_forward_->mean()).col(0).template cast<double>();
+            log_std0 = row_map<T>(policy_forward_->log_std()).row(0).transpose().template cast<double>();
+            tr.mean_raw = row_map<T>(policy_forward_->mean()).row(0).transpose().template cast<double>();
           }
         }
-        models_.step(x_cols_[t], a_cols_[t], x_cols_[t + 1], nullptr);
+        models_.step(x_rows_[t], a_rows_[t], x_rows_[t + 1], nullptr);
       }
     });
     tr.sigma = has_policy ? Eigen::VectorXd((2.0 * log_std0).array().exp()) : Eigen::VectorXd::Ones(m);
@@ -162,23 +162,24 @@ at::Tensor DeterministicHybrid::compute_action(const at::Tensor& state) {
     torch::InferenceMode guard;
     const auto opts = dynamics_->fc1->weight.options().requires_grad(false);
     if (!mig_states_.defined() || mig_states_.scalar_type() != opts.dtype()) {
-      mig_states_ = torch::empty({n, 2}, opts);
-      mig_actions_ = torch::empty({m, 2}, opts);
-      mig_next_ = torch::empty({n, 2}, opts);
+      mig_states_ = torch::empty({2, n}, opts);
+      mig_actions_ = torch::empty({2, m}, opts);
+      mig_next_ = torch::empty({2, n}, opts);
       mig_rewards_ = torch::empty({2}, opts);
     }
     mig_models_.prepare(2);
     dispatch_floating(mig_states_, [&](auto tag) {
       using T = decltype(tag);
-      row_map<T>(mig_states_).colwise() = tr.states.row(0).transpose().template cast<T>();
+      row_map<T>(mig_states_).rowwise() = tr.states.row(0).template cast<T>();
       auto acts = row_map<T>(mig_actions_);
-      acts.col(0) = a_star.template cast<T>();
-      acts.col(1) = tr.mean_action.template cast<T>();
+      acts.row(0) = a_star.transpose().template cast<T>();
+      acts.row(1) = tr.mean_action.transpose().template cast<T>();
     });
     mig_models_.step(mig_states_, mig_actions_, mig_next_, &mig_rewards_);
     const Eigen::MatrixXd f = to_eigen(mig_next_);
     const Eigen::MatrixXd r = to_eigen(mig_rewards_.view({1, 2}));
-    diagnostics_.mode_insertion_gradient = (r(0, 0) - r(0, 1)) + adjoint_used(1).dot(f.col(0) - f.col(1));
+    diagnostics_.mode_insertion_gradient =
+        (r(0, 0) - r(0, 1)) + adjoint_used(1).dot((f.row(0) - f.row(1)).transpose());
   }
 
   Eigen::VectorXd action = a_star;

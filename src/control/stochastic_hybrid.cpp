@@ -33,9 +33,9 @@ void StochasticHybrid::reset() {
   const int64_t n = dynamics_->options().state_dim;
   // Buffers live as long as the controller; the per-step views into them are made once here.
   plan_ = torch::zeros({H, m}, opts);
-  states_a_ = torch::empty({n, K}, opts);
-  states_b_ = torch::empty({n, K}, opts);
-  samples_ = torch::empty({H, m, K}, opts);
+  states_a_ = torch::empty({K, n}, opts);
+  states_b_ = torch::empty({K, n}, opts);
+  samples_ = torch::empty({H, K, m}, opts);
   rewards_ = torch::empty({H, K}, opts);
   weights_ = torch::empty({H, K}, opts);
   plan_rows_.clear();
@@ -63,8 +63,8 @@ at::Tensor StochasticHybrid::compute_action(const at::Tensor& state) {
     auto plan = row_map<T>(plan_);
     if (H > 1) plan.topRows(H - 1) = plan.bottomRows(H - 1).eval();
     plan.row(H - 1).setZero();
-    Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, 1>> s(s0.data_ptr<T>(), n);
-    row_map<T>(states_a_).colwise() = s;
+    Eigen::Map<const Eigen::Matrix<T, 1, Eigen::Dynamic>> s(s0.data_ptr<T>(), n);
+    row_map<T>(states_a_).rowwise() = s;
   });
 
   // All K rollouts advance together: per step one sampler call and one model step on [K, .] batches.
@@ -97,16 +97,16 @@ at::Tensor StochasticHybrid::compute_action(const at::Tensor& state) {
     // a_t += sum_k w_t^k (v_t^k - a_t)
     auto plan = row_map<T>(plan_);
     for (int64_t t = 0; t < H; ++t) {
-      Eigen::Map<const RowMatrix<T>> v(samples_.data_ptr<T>() + t * m * K, m, K);
-      plan.row(t) += ((v.colwise() - plan.row(t).transpose()) * w.row(t).transpose()).transpose();
+      Eigen::Map<const RowMatrix<T>> v(samples_.data_ptr<T>() + t * K * m, K, m);
+      plan.row(t) += w.row(t) * (v.rowwise() - plan.row(t));
     }
     finite = plan.allFinite();
     // Diagnostics of step 0's weights: effective sample size and the weight on saturated actions.
     diagnostics_.weight_ess = 1.0 / static_cast<double>(w.row(0).squaredNorm());
-    Eigen::Map<const RowMatrix<T>> v0(samples_.data_ptr<T>(), m, K);
-    const Eigen::Matrix<T, 1, Eigen::Dynamic> max_abs = v0.array().abs().colwise().maxCoeff();
+    Eigen::Map<const RowMatrix<T>> v0(samples_.data_ptr<T>(), K, m);
+    const Eigen::Matrix<T, Eigen::Dynamic, 1> max_abs = v0.array().abs().rowwise().maxCoeff();
     diagnostics_.saturated_weight =
-        static_cast<double>((max_abs.array() > T(0.99)).select(w.row(0).array(), T(0)).sum());
+        static_cast<double>((max_abs.array() > T(0.99)).select(w.row(0).transpose().array(), T(0)).sum());
   });
   at::Tensor action = plan_rows_[0].clone();
   // Do not carry a poisoned plan into the next step; the base class substitutes the fallback action.

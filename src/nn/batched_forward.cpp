@@ -1,5 +1,6 @@
 #include "hlt/nn/batched_forward.h"
 
+#include <algorithm>
 #include <optional>
 
 #include <torch/torch.h>
@@ -14,40 +15,46 @@ torch::nn::LinearImpl* linear_at(torch::nn::ModuleList list, size_t i) {
   return list[i]->as<torch::nn::Linear>();
 }
 
-// x = act(x + bias) for a contiguous row block x [rows, batch] and a bias parameter [rows]: for float one
-// pass of hlt's vector kernels (SLEEF's sin, no dispatched op); double (tests) through Eigen and ATen.
+// x = act(x + bias) for a sample-major block x [batch, width] (rows may be strided: a column block of a
+// fused layer's output) and a bias parameter [width]: for float one pass of hlt's vector kernels (SLEEF's
+// sin, no dispatched op); double (tests) through Eigen and ATen.
 void bias_activate(const at::Tensor& x, const at::Tensor& bias, std::optional<Activation> a) {
   if (x.scalar_type() == at::kFloat) {
     const BiasThen then = !a ? BiasThen::kNothing : *a == Activation::kSin ? BiasThen::kSin : BiasThen::kRelu;
-    bias_rows(x.data_ptr<float>(), x.size(0), x.size(1), x.stride(0), bias.data_ptr<float>(), then);
+    bias_cols(x.data_ptr<float>(), x.size(0), x.size(1), x.stride(0), bias.data_ptr<float>(), then);
     return;
   }
   dispatch_floating(x, [&](auto tag) {
     using T = decltype(tag);
     auto m = row_map<T>(x);
-    Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, 1>> b(bias.data_ptr<T>(), bias.numel());
+    Eigen::Map<const Eigen::Matrix<T, 1, Eigen::Dynamic>> b(bias.data_ptr<T>(), bias.numel());
     if (a == Activation::kRelu) {
-      m = (m.colwise() + b).cwiseMax(T(0));
+      m = (m.rowwise() + b).cwiseMax(T(0));
     } else {
-      m.colwise() += b;
+      m.rowwise() += b;
     }
   });
   if (a == Activation::kSin) at::sin_(const_cast<at::Tensor&>(x));
 }
 
-// Copies a contiguous tensor's values into `dst` (same element count).
+// Copies the transpose of a weight [out, in] into the block at (row, col) of a row-major matrix with `stride`
+// columns: the [in, out] layout that makes a sample-major layer x W^T one plain product.
 template <typename T>
-void copy_into(const at::Tensor& src, T* dst) {
-  std::copy(src.data_ptr<T>(), src.data_ptr<T>() + src.numel(), dst);
-}
-
-// Copies an [rows, cols] weight into the block at (row, col) of a row-major matrix with `stride` columns.
-template <typename T>
-void copy_block(const at::Tensor& w, T* dst, int64_t row, int64_t col, int64_t stride) {
-  const int64_t rows = w.size(0), cols = w.size(1);
-  const T* src = w.data_ptr<T>();
-  for (int64_t r = 0; r < rows; ++r)
-    std::copy(src + r * cols, src + (r + 1) * cols, dst + (row + r) * stride + col);
+void copy_transposed(const at::Tensor& w, T* dst, int64_t row, int64_t col, int64_t stride) {
+  const int64_t out = w.size(0), in = w.size(1);
+  Eigen::Map<RowMatrix<T>, 0, Eigen::OuterStride<>> block(dst + row * stride + col, in, out,
+                                                          Eigen::OuterStride<>(stride));
+  const Eigen::Map<const RowMatrix<T>> src(w.data_ptr<T>(), out, in);
+  // In 16 x 16 tiles: a whole-matrix transpose walks one side with a stride of a row and was, at the
+  // reward's 200 x 200, an eighth of a planning call.
+  constexpr Eigen::Index kTile = 16;
+  for (Eigen::Index i = 0; i < in; i += kTile) {
+    const Eigen::Index rows = std::min<Eigen::Index>(kTile, in - i);
+    for (Eigen::Index o = 0; o < out; o += kTile) {
+      const Eigen::Index cols = std::min<Eigen::Index>(kTile, out - o);
+      block.block(i, o, rows, cols) = src.block(o, i, cols, rows).transpose();
+    }
+  }
 }
 
 }  // namespace
@@ -65,7 +72,7 @@ void PolicyForward::prepare(int64_t batch) {
   const auto& o = policy_->options();
   const size_t layers = policy_->mean_layers->size();
   const auto& w0 = linear_at(policy_->mean_layers, 0)->weight;
-  if (buffers_.empty() || buffers_.front().size(1) != batch ||
+  if (buffers_.empty() || buffers_.front().size(0) != batch ||
       w0.scalar_type() != buffers_.front().scalar_type()) {
     // Allocated once per batch size; the off-diagonal blocks of the fused layers stay zero.
     weights_.clear();
@@ -75,21 +82,21 @@ void PolicyForward::prepare(int64_t batch) {
     for (size_t l = 0; l < layers; ++l) {
       const auto& mw = linear_at(policy_->mean_layers, l)->weight;
       const int64_t in = l == 0 ? mw.size(1) : 2 * mw.size(1);
-      weights_.push_back(torch::zeros({2 * mw.size(0), in}, opts));
-      buffers_.push_back(torch::empty({2 * mw.size(0), batch}, opts));
+      weights_.push_back(torch::zeros({in, 2 * mw.size(0)}, opts));
+      buffers_.push_back(torch::empty({batch, 2 * mw.size(0)}, opts));
     }
-    mean_ = buffers_.back().narrow(0, 0, o.action_dim);
-    log_std_ = buffers_.back().narrow(0, o.action_dim, o.action_dim);
-    mean_rows_.clear();
-    std_rows_.clear();
+    mean_ = buffers_.back().narrow(1, 0, o.action_dim);
+    log_std_ = buffers_.back().narrow(1, o.action_dim, o.action_dim);
+    mean_cols_.clear();
+    std_cols_.clear();
     for (size_t l = 0; l < layers; ++l) {
       const int64_t width = l + 1 < layers ? widths_[l] : o.action_dim;
-      mean_rows_.push_back(buffers_[l].narrow(0, 0, width));
-      std_rows_.push_back(buffers_[l].narrow(0, width, width));
+      mean_cols_.push_back(buffers_[l].narrow(1, 0, width));
+      std_cols_.push_back(buffers_[l].narrow(1, width, width));
     }
   }
-  // The current weights, fused: the first layers stacked (both heads read the state), later layers
-  // block-diagonal. Plain row copies, no dispatched ops.
+  // The current weights, transposed and fused: the first layers side by side (both heads read the state),
+  // later layers block-diagonal.
   dispatch_floating(w0, [&](auto tag) {
     using T = decltype(tag);
     for (size_t l = 0; l < layers; ++l) {
@@ -98,8 +105,8 @@ void PolicyForward::prepare(int64_t batch) {
       const int64_t out = mean->weight.size(0), in = mean->weight.size(1);
       const int64_t stride = weights_[l].size(1);
       T* w = weights_[l].data_ptr<T>();
-      copy_block<T>(mean->weight, w, 0, 0, stride);
-      copy_block<T>(std->weight, w, out, l == 0 ? 0 : in, stride);
+      copy_transposed<T>(mean->weight, w, 0, 0, stride);
+      copy_transposed<T>(std->weight, w, l == 0 ? 0 : in, out, stride);
     }
   });
 }
@@ -110,12 +117,12 @@ void PolicyForward::forward(const at::Tensor& states) {
   const at::Tensor* x = &states;
   const size_t layers = buffers_.size();
   for (size_t l = 0; l < layers; ++l) {
-    at::mm_out(buffers_[l], weights_[l], *x);
+    at::mm_out(buffers_[l], *x, weights_[l]);
     x = &buffers_[l];
     const bool hidden = l + 1 < layers;
-    bias_activate(mean_rows_[l], linear_at(policy_->mean_layers, l)->bias,
+    bias_activate(mean_cols_[l], linear_at(policy_->mean_layers, l)->bias,
                   hidden ? std::optional<Activation>(o.mean_activation) : std::nullopt);
-    bias_activate(std_rows_[l], linear_at(policy_->log_std_layers, l)->bias,
+    bias_activate(std_cols_[l], linear_at(policy_->log_std_layers, l)->bias,
                   hidden ? std::optional<Activation>(Activation::kRelu) : std::nullopt);
   }
   dispatch_floating(log_std_, [&](auto tag) {
@@ -138,20 +145,24 @@ ModelForward::ModelForward(DynamicsModel dynamics, RewardModel reward)
 
 void ModelForward::prepare(int64_t batch) {
   const auto& w = dynamics_->fc1->weight;
-  if (!input_.defined() || input_.size(1) != batch || input_.scalar_type() != w.scalar_type()) {
+  if (!input_.defined() || input_.size(0) != batch || input_.scalar_type() != w.scalar_type()) {
     const auto opts = w.options().requires_grad(false);
-    w1_ = torch::empty({hd_ + hr_, n_ + m_}, opts);
-    input_ = torch::empty({n_ + m_, batch}, opts);
-    hidden1_ = torch::empty({hd_ + hr_, batch}, opts);
-    hidden_d_ = hidden1_.narrow(0, 0, hd_);
-    hidden_r_ = hidden1_.narrow(0, hd_, hr_);
-    hidden2_ = torch::empty({hr_, batch}, opts);
+    w1_ = torch::empty({n_ + m_, hd_ + hr_}, opts);
+    w2d_ = torch::empty({hd_, n_}, opts);
+    w2r_ = torch::empty({hr_, hr_}, opts);
+    input_ = torch::empty({batch, n_ + m_}, opts);
+    hidden1_ = torch::empty({batch, hd_ + hr_}, opts);
+    hidden_d_ = hidden1_.narrow(1, 0, hd_);
+    hidden_r_ = hidden1_.narrow(1, hd_, hr_);
+    hidden2_ = torch::empty({batch, hr_}, opts);
   }
   dispatch_floating(w, [&](auto tag) {
     using T = decltype(tag);
-    // Both models read [s; a]: their first layers, stacked, become one product.
-    copy_into<T>(dynamics_->fc1->weight, w1_.data_ptr<T>());
-    copy_into<T>(reward_->fc1->weight, w1_.data_ptr<T>() + hd_ * (n_ + m_));
+    // Both models read [s, a]: their first layers, side by side, become one product.
+    copy_transposed<T>(dynamics_->fc1->weight, w1_.data_ptr<T>(), 0, 0, hd_ + hr_);
+    copy_transposed<T>(reward_->fc1->weight, w1_.data_ptr<T>(), 0, hd_, hd_ + hr_);
+    copy_transposed<T>(dynamics_->fc2->weight, w2d_.data_ptr<T>(), 0, 0, n_);
+    copy_transposed<T>(reward_->fc2->weight, w2r_.data_ptr<T>(), 0, 0, hr_);
   });
 }
 
@@ -161,30 +172,30 @@ void ModelForward::step(const at::Tensor& states, const at::Tensor& actions, at:
   dispatch_floating(input_, [&](auto tag) {
     using T = decltype(tag);
     auto in = row_map<T>(input_);
-    in.topRows(n_) = row_map<T>(states);
-    in.bottomRows(m_) = row_map<T>(actions);
+    in.leftCols(n_) = row_map<T>(states);
+    in.rightCols(m_) = row_map<T>(actions);
   });
-  at::mm_out(hidden1_, w1_, input_);
+  at::mm_out(hidden1_, input_, w1_);
   bias_activate(hidden_d_, dynamics_->fc1->bias, dynamics_->options().activation);
   bias_activate(hidden_r_, reward_->fc1->bias, Activation::kRelu);
-  // s' = s + W2 h + b2
-  at::mm_out(next_states, dynamics_->fc2->weight, hidden_d_);
+  // s' = s + h W2^T + b2
+  at::mm_out(next_states, hidden_d_, w2d_);
   dispatch_floating(next_states, [&](auto tag) {
     using T = decltype(tag);
-    Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, 1>> b(dynamics_->fc2->bias.data_ptr<T>(), n_);
-    row_map<T>(next_states) += row_map<T>(states).colwise() + b;
+    Eigen::Map<const Eigen::Matrix<T, 1, Eigen::Dynamic>> b(dynamics_->fc2->bias.data_ptr<T>(), n_);
+    row_map<T>(next_states) += row_map<T>(states).rowwise() + b;
   });
   if (!rewards) return;
-  at::mm_out(hidden2_, reward_->fc2->weight, hidden_r_);
+  at::mm_out(hidden2_, hidden_r_, w2r_);
   bias_activate(hidden2_, reward_->fc2->bias, Activation::kRelu);
   dispatch_floating(hidden2_, [&](auto tag) {
     using T = decltype(tag);
     auto h = row_map<T>(hidden2_);
-    // The last layer has one output: a vector-matrix product, cheaper in Eigen than a dispatched op.
+    // The last layer has one output: a matrix-vector product, cheaper in Eigen than a dispatched op.
     const auto& w3 = reward_->fc3->weight;
-    Eigen::Map<const Eigen::Matrix<T, 1, Eigen::Dynamic>> w(w3.data_ptr<T>(), w3.size(1));
-    Eigen::Map<Eigen::Matrix<T, 1, Eigen::Dynamic>> r(rewards->data_ptr<T>(), rewards->numel());
-    r.noalias() = w * h;
+    Eigen::Map<const Eigen::Matrix<T, Eigen::Dynamic, 1>> w(w3.data_ptr<T>(), w3.size(1));
+    Eigen::Map<Eigen::Matrix<T, Eigen::Dynamic, 1>> r(rewards->data_ptr<T>(), rewards->numel());
+    r.noalias() = h * w;
     r.array() += reward_->fc3->bias.data_ptr<T>()[0];
   });
 }

@@ -34,18 +34,17 @@ TEST_P(BatchedForward, MatchesModuleForward) {
     torch::NoGradGuard g;
     pf.prepare(B);
     mf.prepare(B);
-    const auto st = s.t().contiguous(), at = a.t().contiguous();
-    pf.forward(st);
+    pf.forward(s);
     auto [mean, log_std] = policy->forward(s);
     const double tol = dtype == torch::kFloat64 ? 1e-12 : 1e-5;
-    EXPECT_TRUE(torch::allclose(pf.mean().t(), mean, tol, tol));
-    EXPECT_TRUE(torch::allclose(pf.log_std().t(), log_std, tol, tol));
+    EXPECT_TRUE(torch::allclose(pf.mean(), mean, tol, tol));
+    EXPECT_TRUE(torch::allclose(pf.log_std(), log_std, tol, tol));
     EXPECT_GT((log_std == policy->options().log_std_max).sum().item<int64_t>() +
                   (log_std == policy->options().log_std_min).sum().item<int64_t>(),
               0);
-    auto next = torch::empty({n, B}, s.options()), r = torch::empty({B}, s.options());
-    mf.step(st, at, next, &r);
-    EXPECT_TRUE(torch::allclose(next.t(), dyn->forward(s, a), tol, tol));
+    auto next = torch::empty({B, n}, s.options()), r = torch::empty({B}, s.options());
+    mf.step(s, a, next, &r);
+    EXPECT_TRUE(torch::allclose(next, dyn->forward(s, a), tol, tol));
     EXPECT_TRUE(torch::allclose(r, rew->forward(s, a).squeeze(1), tol, tol));
     for (auto& p : policy->parameters())
       p.mul_(1.1);

@@ -4,7 +4,7 @@
 //
 // A planning call is begin(), then sample() once per step for all K rollouts at once, then log_density().
 // Random numbers for the whole call are drawn in begin() (one tensor op), so the per-step work is a few
-// batched products and Eigen array expressions. Batches are feature-major (one column per rollout), as in
+// batched products and Eigen array expressions. Batches are sample-major (one row per rollout), as in
 // hlt/nn/batched_forward.h.
 #pragma once
 
@@ -23,10 +23,10 @@ class ActionSampler {
   virtual ~ActionSampler() = default;
   // Starts a planning call with K samples around the plan [H, m].
   virtual void begin(int64_t samples, const at::Tensor& plan) = 0;
-  // Writes step t's actions [m, K] (in [-1, 1]) into `actions` from the rollouts' states [n, K] and the plan
-  // entry a_t [m]. Tensors are contiguous, in the plan's dtype.
+  // Writes step t's actions [K, m] (in [-1, 1]) into `actions` from the rollouts' states [K, n] and the plan
+  // entry a_t [m]. Tensors have contiguous rows and the plan's dtype.
   virtual void sample(int64_t t, const at::Tensor& states, const at::Tensor& plan_t, at::Tensor& actions) = 0;
-  // Log-densities [H, K] of the actions [H, m, K] drawn since begin().
+  // Log-densities [H, K] of the actions [H, K, m] drawn since begin().
   virtual at::Tensor log_density(const at::Tensor& actions) = 0;
 };
 
@@ -45,7 +45,7 @@ class PolicySampler : public ActionSampler {
  private:
   PolicyForward forward_;
   bool tanh_correction_;
-  at::Tensor eps_, log_std_;  // [H, m, K]: standard normal draws and the log-std each was scaled by
+  at::Tensor eps_, log_std_;  // [H, K, m]: standard normal draws and the log-std each was scaled by
 };
 
 // NN-MPPI's noise: z_t ~ N(0, 1), eta_t = filter * eta_{t-1} + (1 - filter) * sigma * z_t,
@@ -85,8 +85,8 @@ class MixtureSampler : public ActionSampler {
   int64_t second_samples_, first_samples_ = 0, horizon_ = 0;
   PolicyForward prior_;
   bool tanh_correction_;
-  at::Tensor actions_first_, actions_second_;  // [m, K1], [m, K2]
-  at::Tensor states_;                          // [n, H K]: every step's rollout states
+  at::Tensor actions_first_, actions_second_;  // [K1, m], [K2, m]
+  at::Tensor states_;                          // [H K, n]: every step's rollout states
 };
 
 }  // namespace hlt

@@ -107,7 +107,7 @@ class DeterministicHybrid : public Controller {
   int64_t interactions_ = 0;
   AdjointTrace trace_;
   at::Tensor X_, A_;                         // the rollout: states [H + 1, n], actions [H, m]
-  std::vector<at::Tensor> x_cols_, a_cols_;  // their rows as [n, 1] / [m, 1] batches of one
+  std::vector<at::Tensor> x_rows_, a_rows_;  // their rows as [1, n] / [1, m] batches of one
   at::Tensor mig_states_, mig_actions_, mig_next_, mig_rewards_;
 };
 

@@ -86,7 +86,7 @@ class StochasticHybrid : public Controller {
   // The last call's weights [H, K], sampled actions [H, K, m] and their log-densities [H, K] (computed
   // only with density_in_weights; undefined otherwise).
   const at::Tensor& weights() const { return weights_; }
-  at::Tensor samples() const { return samples_.permute({0, 2, 1}); }
+  const at::Tensor& samples() const { return samples_; }
   const at::Tensor& log_density() const { return log_density_; }
 
  protected:
@@ -99,7 +99,7 @@ class StochasticHybrid : public Controller {
   StochasticHybridOptions options_;
   std::string name_;
   at::Tensor plan_, weights_, samples_, log_density_, rewards_;
-  at::Tensor states_a_, states_b_;  // rollout state buffers [n, K] (feature-major)
+  at::Tensor states_a_, states_b_;  // rollout state buffers [K, n] (sample-major)
   std::vector<at::Tensor> plan_rows_, sample_rows_, reward_rows_;  // per-step views
 };
 

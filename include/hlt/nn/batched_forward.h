@@ -6,10 +6,12 @@
 // first layers are fused into single products, and the light elementwise work (ReLU, clamps, the dynamics'
 // residual add) runs as Eigen expressions over the same buffers, without dispatch.
 //
-// Batches are feature-major: a batch of B states is an [n, B] matrix (one column per sample). Each layer is
-// then W x + b with the weight in the layout torch stores it ([out, in], row-major), so no weight is ever
-// transposed or copied per call except to fuse the first layers. The results equal the modules' forward
-// passes (tests/core/batched_forward_test.cpp). Float and double models are supported.
+// Batches are sample-major, as the modules' own: a batch of B states is a [B, n] matrix (one row per
+// sample). prepare() copies every weight once per planning call, transposed to [in, out] (and fused), so
+// that each layer is the plain product x W^T with the batch as BLAS's long dimension: OpenBLAS's small-matrix
+// kernels vectorise over that dimension, and with K = 20 samples as the short one (the feature-major layout
+// this replaced) the products took about 1.7x as long (docs/BENCHMARKS.md). The results equal the modules'
+// forward passes (tests/core/batched_forward_test.cpp). Float and double models are supported.
 #pragma once
 
 #include <cstdint>
@@ -65,16 +67,16 @@ class PolicyForward {
   // Re-reads the policy's current weights (training changes them between planning calls) and sizes the
   // buffers for `batch` rows. Call once per planning call.
   void prepare(int64_t batch);
-  // Fills mean() and log_std() for `states` [n, batch].
+  // Fills mean() and log_std() for `states` [batch, n] (rows contiguous).
   void forward(const at::Tensor& states);
-  // [m, batch] views into the output buffer (valid until the batch size changes).
+  // [batch, m] views into the output buffer, rows strided (valid until the batch size changes).
   const at::Tensor& mean() const { return mean_; }
   const at::Tensor& log_std() const { return log_std_; }
 
  private:
   GaussianPolicy policy_;
-  std::vector<at::Tensor> weights_, buffers_;     // per fused layer: [out, in], [out, batch]
-  std::vector<at::Tensor> mean_rows_, std_rows_;  // each head's rows of every layer's buffer
+  std::vector<at::Tensor> weights_, buffers_;     // per fused layer: [in, out], [batch, out]
+  std::vector<at::Tensor> mean_cols_, std_cols_;  // each head's columns of every layer's buffer
   std::vector<int64_t> widths_;                   // hidden width of one head per hidden layer
   at::Tensor mean_, log_std_;
 };
@@ -84,8 +86,8 @@ class ModelForward {
  public:
   ModelForward(DynamicsModel dynamics, RewardModel reward);
   void prepare(int64_t batch);
-  // next_states [n, batch] and, if `rewards` is given, rewards [batch] from states [n, batch] and actions
-  // [m, batch]. The outputs are caller-owned contiguous tensors of the models' dtype.
+  // next_states [batch, n] and, if `rewards` is given, rewards [batch] from states [batch, n] and actions
+  // [batch, m] (rows contiguous). The outputs are caller-owned contiguous tensors of the models' dtype.
   void step(const at::Tensor& states, const at::Tensor& actions, at::Tensor& next_states,
             at::Tensor* rewards);
 
@@ -93,8 +95,8 @@ class ModelForward {
   DynamicsModel dynamics_;
   RewardModel reward_;
   int64_t n_ = 0, m_ = 0, hd_ = 0, hr_ = 0;
-  at::Tensor w1_;                                               // the two first layers, stacked
-  at::Tensor input_, hidden1_, hidden_d_, hidden_r_, hidden2_;  // buffers [rows, batch] and row views
+  at::Tensor w1_, w2d_, w2r_;  // transposed weights: both first layers side by side, the second layers
+  at::Tensor input_, hidden1_, hidden_d_, hidden_r_, hidden2_;  // buffers [batch, width] and column views
 };
 
 }  // namespace hlt
