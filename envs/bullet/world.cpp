@@ -3,6 +3,10 @@
 #include <algorithm>
 #include <cmath>
 
+// Bullet's inline btBoxShape::getPlane, emitted here, trips GCC 12's -Wmaybe-uninitialized inside Bullet's
+// own header (a false positive after inlining btVector3's constructor); the pragma covers Bullet's code only.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #include <btBulletDynamicsCommon.h>
 
 #include <BulletCollision/BroadphaseCollision/btDbvtBroadphase.h>
@@ -11,6 +15,7 @@
 #include <BulletDynamics/Featherstone/btMultiBodyConstraintSolver.h>
 #include <BulletDynamics/Featherstone/btMultiBodyDynamicsWorld.h>
 #include <BulletDynamics/Featherstone/btMultiBodyLinkCollider.h>
+#pragma GCC diagnostic pop
 
 #include "envs/bullet/world_sized_box.h"
 #include "hlt/util/error.h"
