@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <optional>
+#include <type_traits>
 
 #include <torch/torch.h>
 
@@ -42,18 +43,12 @@ void bias_activate(const at::Tensor& x, const at::Tensor& bias, std::optional<Ac
 template <typename T>
 void copy_transposed(const at::Tensor& w, T* dst, int64_t row, int64_t col, int64_t stride) {
   const int64_t out = w.size(0), in = w.size(1);
-  Eigen::Map<RowMatrix<T>, 0, Eigen::OuterStride<>> block(dst + row * stride + col, in, out,
-                                                          Eigen::OuterStride<>(stride));
-  const Eigen::Map<const RowMatrix<T>> src(w.data_ptr<T>(), out, in);
-  // In 16 x 16 tiles: a whole-matrix transpose walks one side with a stride of a row and was, at the
-  // reward's 200 x 200, an eighth of a planning call.
-  constexpr Eigen::Index kTile = 16;
-  for (Eigen::Index i = 0; i < in; i += kTile) {
-    const Eigen::Index rows = std::min<Eigen::Index>(kTile, in - i);
-    for (Eigen::Index o = 0; o < out; o += kTile) {
-      const Eigen::Index cols = std::min<Eigen::Index>(kTile, out - o);
-      block.block(i, o, rows, cols) = src.block(o, i, cols, rows).transpose();
-    }
+  if constexpr (std::is_same_v<T, float>) {
+    transpose_copy(w.data_ptr<float>(), out, in, in, dst + row * stride + col, stride);
+  } else {
+    Eigen::Map<RowMatrix<T>, 0, Eigen::OuterStride<>> block(dst + row * stride + col, in, out,
+                                                            Eigen::OuterStride<>(stride));
+    block = Eigen::Map<const RowMatrix<T>>(w.data_ptr<T>(), out, in).transpose();
   }
 }
 

@@ -107,6 +107,17 @@ struct Kernels {
   static void cos(const float* x, float* out, int64_t n) {
     map_span<V>(x, out, n, [](typename V::Reg v) { return V::cos(v); });
   }
+  static void transpose(const float* src, int64_t rows, int64_t cols, int64_t lds, float* dst, int64_t ldd) {
+    constexpr int64_t T = V::kTile;
+    const int64_t full_rows = rows - rows % T, full_cols = cols - cols % T;
+    for (int64_t r = 0; r < full_rows; r += T)
+      for (int64_t c = 0; c < full_cols; c += T)
+        V::transpose_tile(src + r * lds + c, lds, dst + c * ldd + r, ldd);
+    // The edges, element by element.
+    for (int64_t r = 0; r < rows; ++r)
+      for (int64_t c = r < full_rows ? full_cols : 0; c < cols; ++c)
+        dst[c * ldd + r] = src[r * lds + c];
+  }
   static void relu_gradient(const float* y, float* g, int64_t n) {
     int64_t i = 0;
     for (; i + V::kWidth <= n; i += V::kWidth)

@@ -14,12 +14,14 @@ struct VectorKernelTable {
   void (*sin)(const float*, float*, int64_t);
   void (*cos)(const float*, float*, int64_t);
   void (*relu_gradient)(const float*, float*, int64_t);
+  void (*transpose)(const float*, int64_t, int64_t, int64_t, float*, int64_t);
   void (*adam_step)(float*, const float*, float*, float*, int64_t, const AdamCoefficients&);
 };
 
 template <typename K>
 VectorKernelTable make_table(const char* isa) {
-  return {isa, &K::bias_rows, &K::bias_cols, &K::sin, &K::cos, &K::relu_gradient, &K::adam_step};
+  return {isa,     &K::bias_rows,     &K::bias_cols, &K::sin,
+          &K::cos, &K::relu_gradient, &K::transpose, &K::adam_step};
 }
 
 // Defined in vector_math_<isa>.cpp; call only where the CPU has the instruction set.

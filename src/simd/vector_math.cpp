@@ -1,5 +1,6 @@
 // The SSE2 kernels (every x86-64 CPU has SSE2) and the choice of the kernel table.
 #include <emmintrin.h>
+#include <xmmintrin.h>
 
 #include <sleef.h>
 #include <cstdlib>
@@ -31,6 +32,16 @@ struct Sse2 {
     _mm_store_ps(lanes, v);
     for (int64_t i = 0; i < n; ++i)
       p[i] = lanes[i];
+  }
+  static constexpr int64_t kTile = 4;
+  static void transpose_tile(const float* src, int64_t lds, float* dst, int64_t ldd) {
+    __m128 r0 = _mm_loadu_ps(src), r1 = _mm_loadu_ps(src + lds), r2 = _mm_loadu_ps(src + 2 * lds),
+           r3 = _mm_loadu_ps(src + 3 * lds);
+    _MM_TRANSPOSE4_PS(r0, r1, r2, r3);
+    _mm_storeu_ps(dst, r0);
+    _mm_storeu_ps(dst + ldd, r1);
+    _mm_storeu_ps(dst + 2 * ldd, r2);
+    _mm_storeu_ps(dst + 3 * ldd, r3);
   }
   static Reg set1(float a) { return _mm_set1_ps(a); }
   static Reg zero() { return _mm_setzero_ps(); }
@@ -102,6 +113,9 @@ void vector_cos(const float* x, float* out, int64_t n) {
 }
 void relu_gradient(const float* y, float* g, int64_t n) {
   chosen().relu_gradient(y, g, n);
+}
+void transpose_copy(const float* src, int64_t rows, int64_t cols, int64_t lds, float* dst, int64_t ldd) {
+  chosen().transpose(src, rows, cols, lds, dst, ldd);
 }
 void adam_step(float* p, const float* g, float* m, float* v, int64_t n, const AdamCoefficients& c) {
   chosen().adam_step(p, g, m, v, n, c);

@@ -140,6 +140,21 @@ TEST_P(VectorMath, ReluGradientKeepsTheGradientWhereTheOutputIsPositive) {
   }
 }
 
+TEST_P(VectorMath, TransposeCopiesEveryElementAndNothingElse) {
+  for (int64_t rows : {1, 3, 4, 8, 13, 16, 37}) {
+    for (int64_t cols : {1, 5, 8, 9, 16, 40}) {
+      const int64_t lds = cols + 2, ldd = rows + 3;
+      const std::vector<float> src = test_points(rows * lds);
+      std::vector<float> dst(cols * ldd, -7.0f);
+      transpose_copy(src.data(), rows, cols, lds, dst.data(), ldd);
+      for (int64_t c = 0; c < cols; ++c)
+        for (int64_t r = 0; r < ldd; ++r)
+          EXPECT_EQ(dst[c * ldd + r], r < rows ? src[r * lds + c] : -7.0f)
+              << rows << " x " << cols << " at (" << r << ", " << c << ")";
+    }
+  }
+}
+
 // torch.optim.Adam's float arithmetic, one value at a time, in the order the kernel promises.
 void adam_reference(float& p, float g, float& m, float& v, const AdamCoefficients& c) {
   m = m * c.b1 + c.c1 * g;

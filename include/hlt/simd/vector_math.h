@@ -25,6 +25,10 @@ void bias_cols(float* x, int64_t rows, int64_t cols, int64_t ld, const float* bi
 void vector_sin(const float* x, float* out, int64_t n);
 void vector_cos(const float* x, float* out, int64_t n);
 
+// dst[c * ldd + r] = src[r * lds + c] for r < rows, c < cols: a transposed copy, in register tiles (a
+// planner call transposes every weight; done element by element this was a tenth of a small call).
+void transpose_copy(const float* src, int64_t rows, int64_t cols, int64_t lds, float* dst, int64_t ldd);
+
 // g[i] = y[i] > 0 ? g[i] : 0: ReLU's backward pass from its output y (exact on every instruction set).
 void relu_gradient(const float* y, float* g, int64_t n);
 
