@@ -23,7 +23,8 @@ typename V::Reg after_bias(typename V::Reg v) {
   return v;
 }
 
-// Calls g.template operator()<F>() with the bias pass F as a compile-time constant (no branch per register).
+// Calls g with the bias pass as a std::integral_constant, so that the pass is fixed at compile time (no
+// branch per register).
 template <typename G>
 void with_bias_then(BiasThen f, G&& g) {
   switch (f) {
@@ -51,8 +52,8 @@ struct Kernels {
   static void bias_rows(float* x, int64_t rows, int64_t cols, int64_t ld, const float* bias, BiasThen f) {
     if (f == BiasThen::kSin) {
       bias_rows(x, rows, cols, ld, bias, BiasThen::kNothing);
-      // One sin pass over the whole block where it is contiguous: a planner's rows (K samples) are often
-      // shorter than two registers.
+      // One sin pass over the whole block where it is contiguous: short rows would each end in a partial
+      // register.
       if (ld == cols) {
         sin(x, x, rows * cols);
       } else {
