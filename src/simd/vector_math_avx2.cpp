@@ -4,6 +4,7 @@
 
 #include "kernels.h"
 #include "table.h"
+#include "transpose_avx.h"
 
 namespace hlt {
 namespace {
@@ -20,26 +21,10 @@ struct Avx2 {
   }
   static Reg load_partial(const float* p, int64_t n) { return _mm256_maskload_ps(p, first(n)); }
   static void store_partial(float* p, Reg v, int64_t n) { _mm256_maskstore_ps(p, first(n), v); }
-  // An 8 x 8 tile: unpack pairs of rows, shuffle pairs of pairs, swap 128-bit halves.
+  // 8 x 8 tiles in 256-bit registers (transpose_avx.h).
   static constexpr int64_t kTile = 8;
   static void transpose_tile(const float* src, int64_t lds, float* dst, int64_t ldd) {
-    __m256 r[8], t[8];
-    for (int i = 0; i < 8; ++i)
-      r[i] = _mm256_loadu_ps(src + i * lds);
-    for (int i = 0; i < 8; i += 2) {
-      t[i] = _mm256_unpacklo_ps(r[i], r[i + 1]);
-      t[i + 1] = _mm256_unpackhi_ps(r[i], r[i + 1]);
-    }
-    for (int i = 0; i < 8; i += 4) {
-      r[i] = _mm256_shuffle_ps(t[i], t[i + 2], _MM_SHUFFLE(1, 0, 1, 0));
-      r[i + 1] = _mm256_shuffle_ps(t[i], t[i + 2], _MM_SHUFFLE(3, 2, 3, 2));
-      r[i + 2] = _mm256_shuffle_ps(t[i + 1], t[i + 3], _MM_SHUFFLE(1, 0, 1, 0));
-      r[i + 3] = _mm256_shuffle_ps(t[i + 1], t[i + 3], _MM_SHUFFLE(3, 2, 3, 2));
-    }
-    for (int i = 0; i < 4; ++i) {
-      _mm256_storeu_ps(dst + i * ldd, _mm256_permute2f128_ps(r[i], r[i + 4], 0x20));
-      _mm256_storeu_ps(dst + (i + 4) * ldd, _mm256_permute2f128_ps(r[i], r[i + 4], 0x31));
-    }
+    transpose_tile_8x8(src, lds, dst, ldd);
   }
   static Reg set1(float a) { return _mm256_set1_ps(a); }
   static Reg zero() { return _mm256_setzero_ps(); }
