@@ -11,11 +11,11 @@
 #include <cmath>
 #include <limits>
 #include <string>
-#include <utility>
 #include <vector>
 
 #include "hlt/simd/vector_math.h"
 #include "hlt/util/error.h"
+#include "support/subprocess.h"
 
 namespace hlt {
 namespace {
@@ -204,17 +204,11 @@ TEST(VectorMathChoice, ReportForParent) {
 }
 
 // This binary with HLT_VECTOR_ISA set to `value`: its exit status and what it printed.
-std::pair<int, std::string> child_with(const std::string& value) {
+test::Result child_with(const std::string& value) {
   char self[PATH_MAX] = {};
   EXPECT_GT(::readlink("/proc/self/exe", self, sizeof self - 1), 0);
-  const std::string command = "env HLT_VECTOR_ISA=" + value + " HLT_VECTOR_REPORT=1 " + self +
-                              " --gtest_filter=VectorMathChoice.ReportForParent 2>&1";
-  std::string out;
-  FILE* pipe = ::popen(command.c_str(), "r");
-  char buf[4096];
-  while (size_t k = std::fread(buf, 1, sizeof buf, pipe))
-    out.append(buf, k);
-  return {::pclose(pipe), out};
+  return test::run("env HLT_VECTOR_ISA=" + value + " HLT_VECTOR_REPORT=1 " + self +
+                   " --gtest_filter=VectorMathChoice.ReportForParent");
 }
 
 TEST(VectorMathChoice, TheEnvironmentVariableOverridesTheChoiceAndIsChecked) {

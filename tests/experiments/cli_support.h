@@ -11,26 +11,10 @@
 #include <fmt/format.h>
 
 #include "hlt/util/scalar_logger.h"
+#include "support/subprocess.h"
 
 namespace hlt {
 namespace test {
-
-struct Result {
-  int code = -1;
-  std::string output;  // stdout and stderr
-};
-
-inline Result run(const std::string& command) {
-  Result r;
-  FILE* pipe = ::popen((command + " 2>&1").c_str(), "r");
-  if (!pipe) return r;
-  char buf[4096];
-  while (size_t n = std::fread(buf, 1, sizeof buf, pipe))
-    r.output.append(buf, n);
-  const int status = ::pclose(pipe);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
 
 inline std::string fresh_dir(const std::string& name) {
   const std::filesystem::path p = std::filesystem::temp_directory_path() / "hlt_cli_test" / name;
