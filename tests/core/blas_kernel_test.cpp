@@ -12,6 +12,7 @@
 #include <torch/torch.h>
 
 #include "hlt/util/blas_kernel.h"
+#include "support/subprocess.h"
 
 namespace hlt {
 namespace {
@@ -28,16 +29,11 @@ std::string report_of_child(const std::string& env_prefix) {
   char self[PATH_MAX] = {};
   const ssize_t n = ::readlink("/proc/self/exe", self, sizeof self - 1);
   EXPECT_GT(n, 0);
-  const std::string command = "env -u " + std::string(kOpenBlasCoreVar) + " -u " + kHltSetCoreVar + " " +
-                              env_prefix + " HLT_BLAS_REPORT=1 " + self +
-                              " --gtest_filter=BlasKernel.ReportForParent 2>&1";
-  std::string out;
-  FILE* pipe = ::popen(command.c_str(), "r");
-  char buf[4096];
-  while (size_t k = std::fread(buf, 1, sizeof buf, pipe))
-    out.append(buf, k);
-  EXPECT_EQ(::pclose(pipe), 0) << out;
-  return out;
+  const test::Result r =
+      test::run("env -u " + std::string(kOpenBlasCoreVar) + " -u " + kHltSetCoreVar + " " + env_prefix +
+                " HLT_BLAS_REPORT=1 " + self + " --gtest_filter=BlasKernel.ReportForParent");
+  EXPECT_EQ(r.code, 0) << r.output;
+  return r.output;
 }
 
 TEST(BlasKernel, FallbackCoresAreRecognised) {
