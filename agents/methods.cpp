@@ -49,8 +49,10 @@ DeterministicHybridOptions deterministic_options(const Config& c, bool evaluatio
   o.clamp_adjoint = c.get_bool("deterministic.clamp_adjoint");
   o.exploration_decay = c.get_double("deterministic.exploration_decay");
   o.explore = !evaluation;
-  if (with_policy && c.get_string("deterministic.action_rule") == "bounded") {
-    o.rule = DeterministicActionRule::kBounded;
+  if (with_policy) {
+    const std::string rule = c.get_string("deterministic.action_rule");
+    if (rule == "bounded") o.rule = DeterministicActionRule::kBounded;
+    if (rule == "squashed") o.rule = DeterministicActionRule::kBoundedSquashed;
   }
   return o;
 }
@@ -63,8 +65,8 @@ std::unique_ptr<Controller> make_policy_controller(const LearnedModels& m, const
 std::unique_ptr<Controller> make_stochastic_hybrid(const LearnedModels& m, const Config& c, bool) {
   require(!m.policy.is_empty(), "stochastic_hybrid", "policy");
   require(!m.dynamics.is_empty() && !m.reward.is_empty(), "stochastic_hybrid", "dynamics and reward model");
-  std::shared_ptr<ActionSampler> sampler =
-      std::make_shared<PolicySampler>(m.policy, c.get_bool("planner.density_tanh_correction"));
+  std::shared_ptr<ActionSampler> sampler = std::make_shared<PolicySampler>(
+      m.policy, c.get_bool("planner.density_tanh_correction"), c.get_bool("planner.mean_rollout"));
   StochasticHybridOptions o = stochastic_options(c);
   const int64_t plan_samples = c.get_int("planner.plan_samples");
   if (plan_samples > 0) {

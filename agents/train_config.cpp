@@ -94,6 +94,9 @@ Config make_train_config() {
           "planner.plan_prior", false,
           "with plan samples: weight every sample by exp(J / lambda) pi(v | s), the policy's density at "
           "the sample's state (Theorem 2's bound to the policy), instead of exp(J / lambda) alone")
+      .add_bool("planner.mean_rollout", false,
+                "hybrid-stochastic: the first policy rollout follows the policy's mean action instead of a "
+                "draw, so the planner can choose the policy's own action")
       .add_bool("planner.density_in_weights", true, "include log p(v) in the stochastic planner's weights")
       .add_double("planner.min_ess_fraction", 0.0,
                   "if > 0, temper a step's J / lambda so its weights' effective sample size is at least this "
@@ -111,8 +114,9 @@ Config make_train_config() {
           "deterministic.action_rule", "bounded",
           "hybrid-deterministic's a*: 'exact' = mu + Sigma (dr/da_0 + B_0^T rho_1) (Theorem 1, discrete); "
           "'bounded' = clip(mu_raw + Sigma (1 - tanh^2 mu_raw) B_0^T clamp(rho_0, -1, 1)) (the authors' "
-          "rule; see DeterministicActionRule). The model-based baseline always uses 'exact'",
-          {"bounded", "exact"})
+          "rule); 'squashed' = tanh(mu_raw + the same bounded correction) (zero correction is the policy's "
+          "action; see DeterministicActionRule). The model-based baseline always uses 'exact'",
+          {"bounded", "exact", "squashed"})
       .add_double("deterministic.exploration_decay", 0.999,
                   "exploration noise std = decay^t, t counting agent steps (environment interactions)", 0.0,
                   1.0);

@@ -19,12 +19,14 @@ Eigen::Map<RowMatrix<T>> block(const at::Tensor& t, int64_t offset, int64_t rows
 
 }  // namespace
 
-PolicySampler::PolicySampler(GaussianPolicy policy, bool tanh_correction)
-    : forward_(std::move(policy)), tanh_correction_(tanh_correction) {}
+PolicySampler::PolicySampler(GaussianPolicy policy, bool tanh_correction, bool mean_rollout)
+    : forward_(std::move(policy)), tanh_correction_(tanh_correction), mean_rollout_(mean_rollout) {}
 
 void PolicySampler::begin(int64_t samples, const at::Tensor& plan) {
   forward_.prepare(samples);
   eps_ = torch::randn({plan.size(0), samples, plan.size(1)}, plan.options());
+  // Drawn and then zeroed, so that the other rollouts see the same random numbers either way.
+  if (mean_rollout_) eps_.select(1, 0).zero_();
   if (!log_std_.defined() || log_std_.sizes() != eps_.sizes() ||
       log_std_.scalar_type() != eps_.scalar_type()) {
     log_std_ = torch::empty_like(eps_);

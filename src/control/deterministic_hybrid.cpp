@@ -133,12 +133,14 @@ const AdjointTrace& DeterministicHybrid::analyse(const at::Tensor& state) {
   // 4. The best action (Theorem 1, discrete): mu(s0) + Sigma(s0) (dr/da|_0 + B_0^T rho_1).
   tr.dreturn_da0 = J.ra.row(0).transpose() + J.fa.middleRows(0, n).transpose() * adjoint_used(1);
   tr.mean_action = tr.actions.row(0).transpose();
-  if (options_.rule == DeterministicActionRule::kBounded) {
-    // mu_raw + Sigma (1 - tanh^2(mu_raw)) B_0^T clamp(rho_0, -1, 1).
+  if (options_.rule != DeterministicActionRule::kExact) {
+    // mu_raw + Sigma (1 - tanh^2(mu_raw)) B_0^T clamp(rho_0, -1, 1), squashed by tanh under kBoundedSquashed.
     const Eigen::VectorXd rho0 = tr.rho.row(0).transpose().cwiseMax(-1.0).cwiseMin(1.0);
     const Eigen::VectorXd dtanh = (1.0 - tr.mean_raw.array().tanh().square()).matrix();
     const Eigen::VectorXd correction = dtanh.cwiseProduct(J.fa.middleRows(0, n).transpose() * rho0);
     tr.action = tr.mean_raw + tr.sigma.cwiseProduct(correction);
+    if (options_.rule == DeterministicActionRule::kBoundedSquashed)
+      tr.action = tr.action.array().tanh().matrix();
   } else {
     tr.action = tr.mean_action + tr.sigma.cwiseProduct(tr.dreturn_da0);
   }

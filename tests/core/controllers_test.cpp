@@ -184,6 +184,34 @@ TEST(DeterministicHybrid, ExplorationDecaysAndSeedIsDeterministic) {
 // The bounded rule against a hand computation: a* = mu_raw + Sigma (1 - tanh^2(mu_raw)) B_0^T clamp(rho_0,
 // -1, 1), with B_0 = df/da at (s0, mu(s0)) by finite differences and rho_0 the (separately tested) exact
 // adjoint.
+// Where the models predict no gain (a reward that is constant, so rho = 0), the squashed rule acts exactly
+// as the policy, tanh(mu_raw), and the bounded rule acts clip(mu_raw), which differs from it.
+TEST(DeterministicHybrid, SquashedRuleWithoutCorrectionIsThePolicy) {
+  const int n = 3, m = 2;
+  Models md = random_models(n, m, 16, 0.3);
+  {
+    torch::NoGradGuard g;
+    md.reward->fc3->weight.zero_();
+    // A policy mean of a few units, so that clip(mu_raw) and tanh(mu_raw) differ.
+    md.policy->mean_layers[1]->as<torch::nn::Linear>()->bias.fill_(0.8);
+  }
+  auto s0 = torch::randn({n}, torch::kFloat64);
+  const auto policy_action = md.policy->mean_action(s0.unsqueeze(0)).squeeze(0).detach();
+  DeterministicHybridOptions o{5, false, 0.999, false};
+  o.rule = DeterministicActionRule::kBoundedSquashed;
+  DeterministicHybrid squashed(md.policy, md.dynamics, md.reward, o);
+  const auto a_squashed = squashed.act(s0);
+  o.rule = DeterministicActionRule::kBounded;
+  DeterministicHybrid bounded(md.policy, md.dynamics, md.reward, o);
+  const auto a_bounded = bounded.act(s0);
+  ASSERT_EQ(squashed.trace().rho.cwiseAbs().maxCoeff(), 0.0);
+  for (int j = 0; j < m; ++j) {
+    EXPECT_NEAR(a_squashed[j].item<double>(), policy_action[j].item<double>(), 1e-12);
+    EXPECT_NEAR(a_bounded[j].item<double>(), std::clamp(bounded.trace().mean_raw[j], -1.0, 1.0), 1e-12);
+  }
+  EXPECT_GT((a_bounded - a_squashed).abs().max().item<double>(), 0.05);
+}
+
 TEST(DeterministicHybrid, BoundedRuleMatchesHandComputationAndRespectsClamps) {
   for (uint64_t seed : {13, 14, 15}) {
     const int n = 3, m = 2;
@@ -242,6 +270,14 @@ TEST(DeterministicHybrid, BoundedRuleMatchesHandComputationAndRespectsClamps) {
               (tr.action - tr.mean_raw).cwiseAbs().maxCoeff());
     // The mode insertion gradient is still reported against the policy's action tanh(mu_raw).
     EXPECT_TRUE(std::isfinite(ctrl.diagnostics().mode_insertion_gradient));
+    // The squashed rule takes the same step and maps it through tanh.
+    o.rule = DeterministicActionRule::kBoundedSquashed;
+    DeterministicHybrid squashed(md.policy, md.dynamics, md.reward, o);
+    const auto executed_squashed = squashed.act(s0);
+    for (int j = 0; j < m; ++j) {
+      EXPECT_NEAR(squashed.trace().action[j], std::tanh(tr.action[j]), 1e-12);
+      EXPECT_NEAR(executed_squashed[j].item<double>(), std::tanh(tr.action[j]), 1e-6);
+    }
   }
 }
 
@@ -297,6 +333,30 @@ TEST(StochasticHybrid, PolicySamplerFindsKnownOptimum) {
                           StochasticHybridOptions{1, 400, 0.01, true, 1e-5}, policy);
   const double a = hybrid.act(torch::tensor({0.3f}))[0].item<double>();
   EXPECT_NEAR(a, -0.6, 0.05);
+}
+
+TEST(StochasticHybrid, MeanRolloutFollowsThePolicyMeanAndLeavesTheOtherDraws) {
+  Models md = random_models(3, 2, 23);
+  const auto s0 = torch::randn({3}, torch::kFloat64);
+  auto samples = [&](bool mean_rollout) {
+    torch::manual_seed(5);
+    StochasticHybrid h(std::make_shared<PolicySampler>(md.policy, false, mean_rollout), md.dynamics,
+                       md.reward, StochasticHybridOptions{4, 6, 0.5, true, 1e-5}, md.policy);
+    h.act(s0);
+    return h.samples().clone();  // [H, K, m]
+  };
+  const auto with = samples(true), without = samples(false);
+  // Rollouts 1..K-1 are the same draws with and without the mean rollout.
+  EXPECT_TRUE(torch::equal(with.narrow(1, 1, 5), without.narrow(1, 1, 5)));
+  EXPECT_FALSE(torch::equal(with.select(1, 0), without.select(1, 0)));
+  // Rollout 0 is the closed loop s_{t+1} = f(s_t, tanh(mu(s_t))) of the learned dynamics.
+  torch::NoGradGuard g;
+  auto s = s0.unsqueeze(0);
+  for (int64_t t = 0; t < 4; ++t) {
+    const auto a = md.policy->mean_action(s);
+    EXPECT_TRUE(torch::allclose(with[t][0], a[0], 1e-9, 1e-12)) << "step " << t;
+    s = md.dynamics->forward(s, a);
+  }
 }
 
 TEST(StochasticHybrid, WeightsAreFiniteNormalisedAndFollowTheFormula) {

@@ -34,17 +34,19 @@ class ActionSampler {
 // is that of the Gaussian pi = N(mu, Sigma) the paper's Theorem 2 weights with (the authors' code too), at
 // the pre-tanh sample u; with `tanh_correction` it is the density of the squashed action v instead, which
 // adds -log(1 - v^2 + 1e-6) per dimension: up to +13.8 for a saturated action, so that a weight exp(J /
-// lambda) p(v) then prefers saturated samples whatever their predicted return.
+// lambda) p(v) then prefers saturated samples whatever their predicted return. With `mean_rollout` the
+// first rollout follows the policy's mean (u = mu(s), eps = 0) instead of a draw: the planner's weights,
+// which fall on one or two samples, can then pick the policy's own action, not only noisy versions of it.
 class PolicySampler : public ActionSampler {
  public:
-  explicit PolicySampler(GaussianPolicy policy, bool tanh_correction = true);
+  explicit PolicySampler(GaussianPolicy policy, bool tanh_correction = true, bool mean_rollout = false);
   void begin(int64_t samples, const at::Tensor& plan) override;
   void sample(int64_t t, const at::Tensor& states, const at::Tensor& plan_t, at::Tensor& actions) override;
   at::Tensor log_density(const at::Tensor& actions) override;
 
  private:
   PolicyForward forward_;
-  bool tanh_correction_;
+  bool tanh_correction_, mean_rollout_;
   at::Tensor eps_, log_std_;  // [H, K, m]: standard normal draws and the log-std each was scaled by
 };
 
