@@ -181,9 +181,6 @@ TEST(DeterministicHybrid, ExplorationDecaysAndSeedIsDeterministic) {
   EXPECT_GT(std::abs(run(6, 0) - a_star), 1e-4);
 }
 
-// The bounded rule against a hand computation: a* = mu_raw + Sigma (1 - tanh^2(mu_raw)) B_0^T clamp(rho_0,
-// -1, 1), with B_0 = df/da at (s0, mu(s0)) by finite differences and rho_0 the (separately tested) exact
-// adjoint.
 // Where the models predict no gain (a reward that is constant, so rho = 0), the squashed rule acts exactly
 // as the policy, tanh(mu_raw), and the bounded rule acts clip(mu_raw), which differs from it.
 TEST(DeterministicHybrid, SquashedRuleWithoutCorrectionIsThePolicy) {
@@ -192,7 +189,7 @@ TEST(DeterministicHybrid, SquashedRuleWithoutCorrectionIsThePolicy) {
   {
     torch::NoGradGuard g;
     md.reward->fc3->weight.zero_();
-    // A policy mean of a few units, so that clip(mu_raw) and tanh(mu_raw) differ.
+    // A pre-tanh mean near 0.8, where clip(mu_raw) and tanh(mu_raw) differ by about 0.14.
     md.policy->mean_layers[1]->as<torch::nn::Linear>()->bias.fill_(0.8);
   }
   auto s0 = torch::randn({n}, torch::kFloat64);
@@ -212,6 +209,9 @@ TEST(DeterministicHybrid, SquashedRuleWithoutCorrectionIsThePolicy) {
   EXPECT_GT((a_bounded - a_squashed).abs().max().item<double>(), 0.05);
 }
 
+// The bounded rule against a hand computation: a* = mu_raw + Sigma (1 - tanh^2(mu_raw)) B_0^T clamp(rho_0,
+// -1, 1), with B_0 = df/da at (s0, mu(s0)) by finite differences and rho_0 the (separately tested) exact
+// adjoint.
 TEST(DeterministicHybrid, BoundedRuleMatchesHandComputationAndRespectsClamps) {
   for (uint64_t seed : {13, 14, 15}) {
     const int n = 3, m = 2;
