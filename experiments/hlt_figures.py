@@ -119,6 +119,28 @@ class Run:
         self.scalars = read_scalars(path)
 
 
+def reached_budget(run, budget):
+    """Whether the run's log shows it reached `budget`, in the budget's unit: agent steps, or iterations for
+    an imitation run. An online run's last episode, cut off by the budget, logs no train/agent_steps row, so
+    on a task whose episodes end early (the hopper) the last logged count falls short of the budget by less
+    than one episode; such a run did finish if an evaluation was logged after that last episode."""
+    tag = IMITATION_X if IMITATION_X in run.scalars else "train/agent_steps"
+    steps, logged = run.scalars.get(tag, ([], []))
+    if not logged:
+        return False
+    if logged[-1] >= budget:
+        return True
+    if tag == IMITATION_X:
+        return False
+    lengths = run.scalars.get("train/episode_length", ([], []))[1]  # environment steps
+    skip = run.config.get("train.frame_skip", 1)
+    if not lengths or not isinstance(skip, int) or skip < 1:
+        return False
+    longest = -(-int(max(lengths)) // skip)  # agent steps
+    evals = run.scalars.get("eval/return_mean", ([], []))[0]
+    return budget - logged[-1] < longest and bool(evals) and max(evals) > max(steps)
+
+
 class Group:
     """The seeds of one variant of one method on one environment."""
 
@@ -769,9 +791,7 @@ def main():
                 run = by_dir.get(os.path.abspath(srun.dir))
                 if run is not None:
                     # progress in the budget's unit: agent steps, or iterations for an imitation run
-                    tag = IMITATION_X if IMITATION_X in run.scalars else "train/agent_steps"
-                    logged = run.scalars.get(tag, ([], []))[1]
-                    if not logged or logged[-1] < srun.steps:
+                    if not reached_budget(run, srun.steps):
                         rep["short"].append(srun)
         groups = make_groups(runs, args.pool_key)
         started = start_registry(args.train)  # LibTorch loads while matplotlib does

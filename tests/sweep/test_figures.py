@@ -289,6 +289,24 @@ class Figures(unittest.TestCase):
                          "-125.0 +- 5.0 (n=2, 8000 env steps (2000 agent steps))")
         self.assertEqual(rows["sac"]["cartpole_swingup"], "paper 740.4 +- 197.5")  # not in the sweep: left out
 
+    def test_a_run_whose_last_episode_was_cut_by_the_budget_is_not_short(self):
+        # Hopper-like logs: episodes end early, so the last logged train/agent_steps (1925) is below the
+        # budget (2000) by less than one episode (800 env steps = 200 agent steps). Seed 0 then logged its
+        # final evaluation and finished; seed 1 was killed in that last episode.
+        root = os.path.join(WORK, "cut_tree")
+        for seed, evals in ((0, [(0, -10.0), (4000, 5.0), (7950, 9.0)]), (1, [(0, -10.0), (4000, 5.0)])):
+            run = make_run(root, "hopper", "sac", seed, {"eval/return_mean": evals}, agent_steps=2000)
+            rows = ["wall_time,step,tag,value"] + [f"1796150000.5,{st},eval/return_mean,{v!r}" for st, v in evals]
+            rows += ["1796150000.5,7700,train/episode_length,800", "1796150000.5,7700,train/agent_steps,1925"]
+            write(os.path.join(run, "scalars.csv"), "\n".join(rows) + "\n")
+        sweep = write(os.path.join(WORK, "cut.yaml"), "envs: [hopper]\nmethods: [sac]\nseeds: 0-1\nsteps: 2000\n")
+        r = figures(root, "--out", os.path.join(WORK, "cut_figs"), "--sweep", sweep)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(os.path.join(WORK, "cut_figs", "results.md")) as f:
+            provenance = section(f.read(), "provenance")
+        self.assertIn("short of their budget: hopper/sac seed 1)", provenance)
+        self.assertNotIn("short of their budget: hopper/sac seeds", provenance)
+
     def test_hlt_plot_orders_methods_by_the_registry(self):
         r = run(["/usr/bin/python3", PLOT, os.path.join(self.tree, "cartpole_swingup"), "--out",
                  os.path.join(WORK, "plot.png"), "--table", "--train", TRAIN])
