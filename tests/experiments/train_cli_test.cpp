@@ -332,7 +332,13 @@ TEST(TrainCli, KilledRunResumesToTheSameLog) {
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
   ASSERT_TRUE(fs::exists(killed + "/checkpoint.pt"));
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  // Kill once the log has grown past what the checkpoint holds: the run is then between checkpoints. A
+  // fixed wait here was longer than the rest of the run on a fast machine.
+  const auto logged_at_checkpoint = fs::file_size(killed + "/scalars.csv");
+  while (fs::file_size(killed + "/scalars.csv") <= logged_at_checkpoint &&
+         std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
   ::kill(pid, SIGKILL);
   int status = 0;
   ::waitpid(pid, &status, 0);
