@@ -790,7 +790,6 @@ def main():
             for srun in rep["runs"]:
                 run = by_dir.get(os.path.abspath(srun.dir))
                 if run is not None:
-                    # progress in the budget's unit: agent steps, or iterations for an imitation run
                     if not reached_budget(run, srun.steps):
                         rep["short"].append(srun)
         groups = make_groups(runs, args.pool_key)

@@ -61,7 +61,8 @@ def write(path, text):
 
 
 def make_run(root, env, method, seed, series, horizon=5, subdir=None, agent_steps=2000):
-    """A run directory with config.yaml and scalars.csv; series: {tag: [(env step, value), ...]}."""
+    """A run directory with config.yaml and scalars.csv; series: {tag: [(env step, value), ...]}. Without a
+    train/agent_steps series one row is added at the last step, as a run of fixed-length episodes logs it."""
     run = os.path.join(root, subdir or env, method, f"seed{seed}")
     write(os.path.join(run, "config.yaml"), CONFIG.format(env=env, method=method, seed=seed, horizon=horizon,
                                                            agent_steps=agent_steps))
@@ -69,8 +70,9 @@ def make_run(root, env, method, seed, series, horizon=5, subdir=None, agent_step
     for tag, points in series.items():
         for step, value in points:
             rows.append(f"1796150000.5,{step},{tag},{value!r}")
-    last = max(step for points in series.values() for step, _ in points)
-    rows.append(f"1796150000.5,{last},train/agent_steps,{last // 4}")
+    if "train/agent_steps" not in series:
+        last = max(step for points in series.values() for step, _ in points)
+        rows.append(f"1796150000.5,{last},train/agent_steps,{last // 4}")
     write(os.path.join(run, "scalars.csv"), "\n".join(rows) + "\n")
     return run
 
@@ -295,10 +297,8 @@ class Figures(unittest.TestCase):
         # final evaluation and finished; seed 1 was killed in that last episode.
         root = os.path.join(WORK, "cut_tree")
         for seed, evals in ((0, [(0, -10.0), (4000, 5.0), (7950, 9.0)]), (1, [(0, -10.0), (4000, 5.0)])):
-            run = make_run(root, "hopper", "sac", seed, {"eval/return_mean": evals}, agent_steps=2000)
-            rows = ["wall_time,step,tag,value"] + [f"1796150000.5,{st},eval/return_mean,{v!r}" for st, v in evals]
-            rows += ["1796150000.5,7700,train/episode_length,800", "1796150000.5,7700,train/agent_steps,1925"]
-            write(os.path.join(run, "scalars.csv"), "\n".join(rows) + "\n")
+            make_run(root, "hopper", "sac", seed, {"eval/return_mean": evals, "train/episode_length": [(7700, 800)],
+                                                   "train/agent_steps": [(7700, 1925)]})
         sweep = write(os.path.join(WORK, "cut.yaml"), "envs: [hopper]\nmethods: [sac]\nseeds: 0-1\nsteps: 2000\n")
         r = figures(root, "--out", os.path.join(WORK, "cut_figs"), "--sweep", sweep)
         self.assertEqual(r.returncode, 0, r.stderr)
