@@ -19,9 +19,30 @@ Eigen::MatrixXd to_eigen(const at::Tensor& t) {
   return out;
 }
 
-// [rows x cols] identity blocks stacked `blocks` times: the seed that selects one output row per input copy.
+// `rows` [H, w] with each row repeated `copies` times in a row, [H copies, w] (repeat_interleave without its
+// index tensor and dispatched ops).
+at::Tensor repeated_rows(const at::Tensor& rows, int64_t copies) {
+  at::Tensor out = at::empty({rows.size(0) * copies, rows.size(1)}, rows.options().requires_grad(false));
+  dispatch_floating(rows, [&](auto tag) {
+    using T = decltype(tag);
+    const auto src = row_map<T>(rows);
+    auto dst = row_map<T>(out);
+    for (Eigen::Index i = 0; i < src.rows(); ++i)
+      dst.middleRows(i * copies, copies).rowwise() = src.row(i);
+  });
+  return out;
+}
+
+// [size x size] identity blocks stacked `blocks` times: the seed that selects one output row per input copy.
 at::Tensor stacked_identity(int64_t blocks, int64_t size, const at::TensorOptions& opts) {
-  return torch::eye(size, opts).repeat({blocks, 1});
+  at::Tensor out = at::zeros({blocks * size, size}, opts);
+  dispatch_floating(out, [&](auto tag) {
+    using T = decltype(tag);
+    auto dst = row_map<T>(out);
+    for (int64_t b = 0; b < blocks; ++b)
+      dst.middleRows(b * size, size).diagonal().setOnes();
+  });
+  return out;
 }
 
 }  // namespace
@@ -31,18 +52,21 @@ ModelJacobians model_jacobians(DynamicsModel& dynamics, RewardModel& reward, Gau
   const int64_t H = states.size(0), n = states.size(1), m = actions.size(1);
   const auto opts = states.options().requires_grad(false);
   // Each output row gets its own copy of the input (n copies for f, m for mu) and an identity seed picks
-  // that row's gradient, so one backward pass yields every row of every Jacobian at every step.
-  at::Tensor Sf = states.repeat_interleave(n, 0).requires_grad_(true);   // [H n, n]
-  at::Tensor Af = actions.repeat_interleave(n, 0).requires_grad_(true);  // [H n, m]
-  at::Tensor Sr = states.detach().requires_grad_(true);                  // [H, n]
-  at::Tensor Ar = actions.detach().requires_grad_(true);                 // [H, m]
-  std::vector<at::Tensor> outputs{dynamics->forward(Sf, Af), reward->forward(Sr, Ar)};
-  std::vector<at::Tensor> seeds{stacked_identity(H, n, opts), torch::ones({H, 1}, opts)};
+  // that row's gradient, so one backward pass yields every row of every Jacobian at every step. Each network
+  // is a single autograd node (dense_chain): the engine's per-node cost, not the products, dominated this
+  // pass through the modules' forward (docs/BENCHMARKS.md).
+  at::Tensor Sf = repeated_rows(states, n).requires_grad_(true);   // [H n, n]
+  at::Tensor Af = repeated_rows(actions, n).requires_grad_(true);  // [H n, m]
+  at::Tensor Sr = states.detach().requires_grad_(true);            // [H, n]
+  at::Tensor Ar = actions.detach().requires_grad_(true);           // [H, m]
+  std::vector<at::Tensor> outputs{dense_chain(dynamics->chain(), {Sf, Af}),
+                                  dense_chain(reward->chain(), {Sr, Ar})};
+  std::vector<at::Tensor> seeds{stacked_identity(H, n, opts), at::ones({H, 1}, opts)};
   std::vector<at::Tensor> inputs{Sf, Af, Sr, Ar};
   const bool has_policy = !policy.is_empty();
   if (has_policy) {
-    at::Tensor Smu = states.repeat_interleave(m, 0).requires_grad_(true);  // [H m, n]
-    outputs.push_back(policy->mean_action(Smu));
+    at::Tensor Smu = repeated_rows(states, m).requires_grad_(true);  // [H m, n]
+    outputs.push_back(dense_chain(policy->mean_chain(), {Smu}));
     seeds.push_back(stacked_identity(H, m, opts));
     inputs.push_back(Smu);
   }
@@ -63,7 +87,6 @@ DeterministicHybrid::DeterministicHybrid(GaussianPolicy policy, DynamicsModel dy
       dynamics_(dynamics),
       reward_(reward),
       models_(dynamics, reward),
-      mig_models_(dynamics, reward),
       options_(options),
       name_(std::move(name)) {
   check(options.horizon >= 1, "{}: horizon must be >= 1", name_);
@@ -79,6 +102,7 @@ const AdjointTrace& DeterministicHybrid::analyse(const at::Tensor& state) {
   if (!X_.defined() || X_.scalar_type() != opts.dtype()) {
     X_ = torch::empty({H + 1, n}, opts);
     A_ = torch::empty({H, m}, opts);
+    reward0_ = torch::empty({1}, opts);
     // A batch of one is a row [1, n] of X (and [1, m] of A).
     x_rows_.clear();
     a_rows_.clear();
@@ -109,7 +133,8 @@ const AdjointTrace& DeterministicHybrid::analyse(const at::Tensor& state) {
             tr.mean_raw = row_map<T>(policy_forward_->mean()).row(0).transpose().template cast<double>();
           }
         }
-        models_.step(x_rows_[t], a_rows_[t], x_rows_[t + 1], nullptr);
+        // r(s0, mu(s0)) is kept for the mode insertion gradient.
+        models_.step(x_rows_[t], a_rows_[t], x_rows_[t + 1], t == 0 ? &reward0_ : nullptr);
       }
     });
     tr.sigma = has_policy ? Eigen::VectorXd((2.0 * log_std0).array().exp()) : Eigen::VectorXd::Ones(m);
@@ -159,29 +184,26 @@ at::Tensor DeterministicHybrid::compute_action(const at::Tensor& state) {
   const Eigen::VectorXd a_star = tr.action.cwiseMax(-1.0).cwiseMin(1.0);
 
   // 5. Mode insertion gradient (eq. 5, discrete): the predicted gain of switching from mu(s0) to a* for one
-  // step, (r(s0, a*) - r(s0, mu)) + rho_1^T (f(s0, a*) - f(s0, mu)); both evaluated as one batch of two.
+  // step, (r(s0, a*) - r(s0, mu)) + rho_1^T (f(s0, a*) - f(s0, mu)). f(s0, mu) = s_1 and r(s0, mu) come from
+  // the rollout; the models are still prepared for its batch of one.
   {
     torch::InferenceMode guard;
     const auto opts = dynamics_->fc1->weight.options().requires_grad(false);
-    if (!mig_states_.defined() || mig_states_.scalar_type() != opts.dtype()) {
-      mig_states_ = torch::empty({2, n}, opts);
-      mig_actions_ = torch::empty({2, m}, opts);
-      mig_next_ = torch::empty({2, n}, opts);
-      mig_rewards_ = torch::empty({2}, opts);
+    if (!mig_action_.defined() || mig_action_.scalar_type() != opts.dtype()) {
+      mig_action_ = torch::empty({1, m}, opts);
+      mig_next_ = torch::empty({1, n}, opts);
+      mig_reward_ = torch::empty({1}, opts);
     }
-    mig_models_.prepare(2);
-    dispatch_floating(mig_states_, [&](auto tag) {
+    dispatch_floating(mig_action_, [&](auto tag) {
       using T = decltype(tag);
-      row_map<T>(mig_states_).rowwise() = tr.states.row(0).template cast<T>();
-      auto acts = row_map<T>(mig_actions_);
-      acts.row(0) = a_star.transpose().template cast<T>();
-      acts.row(1) = tr.mean_action.transpose().template cast<T>();
+      row_map<T>(mig_action_).row(0) = a_star.transpose().template cast<T>();
     });
-    mig_models_.step(mig_states_, mig_actions_, mig_next_, &mig_rewards_);
+    models_.step(x_rows_[0], mig_action_, mig_next_, &mig_reward_);
     const Eigen::MatrixXd f = to_eigen(mig_next_);
-    const Eigen::MatrixXd r = to_eigen(mig_rewards_.view({1, 2}));
+    const double r_star = to_eigen(mig_reward_.view({1, 1}))(0, 0),
+                 r_mu = to_eigen(reward0_.view({1, 1}))(0, 0);
     diagnostics_.mode_insertion_gradient =
-        (r(0, 0) - r(0, 1)) + adjoint_used(1).dot((f.row(0) - f.row(1)).transpose());
+        (r_star - r_mu) + adjoint_used(1).dot((f.row(0) - tr.states.row(1)).transpose());
   }
 
   Eigen::VectorXd action = a_star;

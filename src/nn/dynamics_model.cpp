@@ -23,6 +23,10 @@ torch::Tensor DynamicsModelImpl::forward(const torch::Tensor& state, const torch
   return state + fc2(activate(h, options_.activation));
 }
 
+DenseChain DynamicsModelImpl::chain() const {
+  return DenseChain{{fc1, fc2}, options_.activation, /*tanh_output=*/false, /*residual=*/true};
+}
+
 torch::Tensor DynamicsModelImpl::log_std() const {
   return log_std_param.clamp(options_.log_std_min, options_.log_std_max);
 }

@@ -58,6 +58,13 @@ torch::Tensor GaussianPolicyImpl::mean_action(const torch::Tensor& state) {
   return torch::tanh(run_mlp(mean_layers, state, options_.mean_activation));
 }
 
+DenseChain GaussianPolicyImpl::mean_chain() const {
+  DenseChain chain{{}, options_.mean_activation, /*tanh_output=*/true};
+  for (const auto& layer : *mean_layers)
+    chain.layers.push_back(torch::nn::Linear(std::dynamic_pointer_cast<torch::nn::LinearImpl>(layer)));
+  return chain;
+}
+
 torch::Tensor GaussianPolicyImpl::squashed_log_prob(const torch::Tensor& u, const torch::Tensor& action,
                                                     const torch::Tensor& mean, const torch::Tensor& log_std) {
   const torch::Tensor z = (u - mean) * torch::exp(-log_std);

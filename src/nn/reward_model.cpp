@@ -22,6 +22,10 @@ torch::Tensor RewardModelImpl::forward(const torch::Tensor& state, const torch::
   return fc3(h);
 }
 
+DenseChain RewardModelImpl::chain() const {
+  return DenseChain{{fc1, fc2, fc3}, Activation::kRelu};
+}
+
 torch::Tensor RewardModelImpl::td_loss(const torch::Tensor& state, const torch::Tensor& action,
                                        const torch::Tensor& reward, const torch::Tensor& next_state,
                                        const torch::Tensor& next_action, const torch::Tensor& done,

@@ -107,15 +107,15 @@ class DeterministicHybrid : public Controller {
   GaussianPolicy policy_;
   DynamicsModel dynamics_;
   RewardModel reward_;
-  ModelForward models_, mig_models_;  // batches of one (rollout) and two (mode insertion gradient)
+  ModelForward models_;  // batches of one: the rollout and the mode insertion gradient
   std::optional<PolicyForward> policy_forward_;
   DeterministicHybridOptions options_;
   std::string name_;
   int64_t interactions_ = 0;
   AdjointTrace trace_;
-  at::Tensor X_, A_;                         // the rollout: states [H + 1, n], actions [H, m]
+  at::Tensor X_, A_, reward0_;  // the rollout: states [H + 1, n], actions [H, m], r(s0, mu(s0)) [1]
   std::vector<at::Tensor> x_rows_, a_rows_;  // their rows as [1, n] / [1, m] batches of one
-  at::Tensor mig_states_, mig_actions_, mig_next_, mig_rewards_;
+  at::Tensor mig_action_, mig_next_, mig_reward_;  // a* [1, m], f(s0, a*) [1, n], r(s0, a*) [1]
 };
 
 }  // namespace hlt

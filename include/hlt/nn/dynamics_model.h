@@ -10,6 +10,7 @@
 #include "hlt/nn/dense_layers.h"
 
 #include "hlt/nn/activation.h"
+#include "hlt/nn/dense_chain.h"
 
 namespace hlt {
 
@@ -28,6 +29,8 @@ class DynamicsModelImpl : public torch::nn::Module {
 
   // Predicted next state, [B, n], from states [B, n] and actions [B, m].
   torch::Tensor forward(const torch::Tensor& state, const torch::Tensor& action);
+  // The mean network as one autograd node: dense_chain(chain(), {state, action}) equals forward().
+  DenseChain chain() const;
   // The clamped log-std, [1, n].
   torch::Tensor log_std() const;
   // -mean over batch and state dimensions of log N(next_state; forward(state, action), exp(log_std)^2).

@@ -12,6 +12,7 @@
 #include <torch/nn/modules/linear.h>
 
 #include "hlt/nn/activation.h"
+#include "hlt/nn/dense_chain.h"
 
 namespace hlt {
 
@@ -42,6 +43,9 @@ class GaussianPolicyImpl : public torch::nn::Module {
   std::pair<torch::Tensor, torch::Tensor> forward(const torch::Tensor& state);
   // tanh(mu(s)): the deterministic action.
   torch::Tensor mean_action(const torch::Tensor& state);
+  // The mean head and its tanh as one autograd node: dense_chain(mean_chain(), {state}) equals
+  // mean_action().
+  DenseChain mean_chain() const;
   // A reparameterised sample (gradients flow to the parameters) and its log-probability; the noise comes
   // from `generator` (LibTorch's default generator if none).
   PolicySample rsample(const torch::Tensor& state, c10::optional<at::Generator> generator = c10::nullopt);

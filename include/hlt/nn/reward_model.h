@@ -8,6 +8,7 @@
 #include <torch/nn/module.h>
 
 #include <torch/nn/modules/linear.h>
+#include "hlt/nn/dense_chain.h"
 #include "hlt/nn/dense_layers.h"
 
 namespace hlt {
@@ -24,6 +25,8 @@ class RewardModelImpl : public torch::nn::Module {
 
   // Predicted reward, [B, 1].
   torch::Tensor forward(const torch::Tensor& state, const torch::Tensor& action);
+  // The network as one autograd node: dense_chain(chain(), {state, action}) equals forward().
+  DenseChain chain() const;
   // mean((r + gamma (1 - done) r(s', a')).detach() - r(s, a))^2; reward and done are [B, 1].
   torch::Tensor td_loss(const torch::Tensor& state, const torch::Tensor& action, const torch::Tensor& reward,
                         const torch::Tensor& next_state, const torch::Tensor& next_action,
