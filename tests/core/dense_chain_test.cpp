@@ -104,8 +104,36 @@ TEST(DenseChain, FloatValuesMatchTheModule) {
   for (Case& c : cases(torch::kFloat32)) {
     SCOPED_TRACE(c.name);
     const auto x = random_inputs(c, 33, torch::kFloat32);
-    EXPECT_LT((dense_chain(c.chain, x) - c.module_forward(x)).abs().max().item<double>(), 1e-5);
+    const torch::Tensor y = dense_chain(c.chain, x), y_ref = c.module_forward(x);
+    EXPECT_LT((y - y_ref).abs().max().item<double>(), 1e-5);
+    // The float path has its own kernels (vector sin and cos, the ReLU mask pass): its gradients too.
+    const torch::Tensor seed = torch::randn_like(y);
+    std::vector<torch::Tensor> wrt = x;
+    for (const auto& layer : c.chain.layers) {
+      wrt.push_back(layer->weight);
+      wrt.push_back(layer->bias);
+    }
+    const auto g = torch::autograd::grad({y}, wrt, {seed}),
+               g_ref = torch::autograd::grad({y_ref}, wrt, {seed});
+    for (size_t i = 0; i < g.size(); ++i)
+      EXPECT_LT(testing::relative_error(g[i], g_ref[i]), 1e-5) << "gradient " << i;
   }
+}
+
+TEST(DenseChain, StridedInputsAndSeedsGiveTheSameResults) {
+  Case c = cases(torch::kFloat64).front();  // dynamics: a residual and two inputs
+  const auto wide_s = torch::randn({5, 8}, torch::kFloat64), wide_a = torch::randn({2, 5}, torch::kFloat64);
+  const torch::Tensor s = wide_s.narrow(1, 2, 4).requires_grad_(false), a = wide_a.t();  // strided views
+  const torch::Tensor sc = s.contiguous().requires_grad_(true), ac = a.contiguous().requires_grad_(true);
+  const torch::Tensor sv = s.detach().requires_grad_(true), av = a.detach().requires_grad_(true);
+  const torch::Tensor y = dense_chain(c.chain, {sv, av}), y_ref = c.module_forward({sc, ac});
+  EXPECT_LT((y - y_ref).abs().max().item<double>(), 1e-12);
+  // An expanded seed (stride 0), as torch::ones(...).expand gives.
+  const torch::Tensor seed = torch::randn({1, 4}, torch::kFloat64).expand({5, 4});
+  const auto g = torch::autograd::grad({y}, {sv, av}, {seed}),
+             g_ref = torch::autograd::grad({y_ref}, {sc, ac}, {seed});
+  EXPECT_LT(testing::relative_error(g[0], g_ref[0]), 1e-12);
+  EXPECT_LT(testing::relative_error(g[1], g_ref[1]), 1e-12);
 }
 
 TEST(DenseChain, OnlyWhatIsAskedForIsComputedAndWeightsNeedNoGradient) {
