@@ -5,10 +5,11 @@
 // op (cat, linear, activation, add), and at the deterministic planner's sizes the engine's per-node cost,
 // not the matrix products, is most of a Jacobian pass (docs/BENCHMARKS.md). As one node, with its
 // vector-Jacobian product written out layer by layer, the pass keeps autograd's interface
-// (torch::autograd::grad with any seeds) at a fraction of the cost. Gradients reach the inputs and the
-// weights, each computed only if the engine asks for it; the values equal the module's forward to float
-// rounding (tests/core/ dense_chain_test.cpp checks both passes against autograd through the modules and
-// finite differences).
+// (torch::autograd::grad with any seeds) at a fraction of the cost. Inside the node the products call the
+// process's BLAS gemm directly (the one ATen's products use) and the elementwise work runs over raw
+// buffers. Gradients reach the inputs and the weights, each computed only if the engine asks for it; the
+// values equal the module's forward to float rounding (tests/core/dense_chain_test.cpp checks both passes
+// against autograd through the modules and against finite differences).
 #pragma once
 
 #include <vector>
