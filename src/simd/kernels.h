@@ -6,6 +6,7 @@
 
 #include <emmintrin.h>
 
+#include <cmath>
 #include <cstdint>
 #include <type_traits>
 
@@ -149,6 +150,20 @@ struct Kernels {
     for (; i + V::kWidth <= n; i += V::kWidth)
       one(i, V::kWidth);
     if (i < n) one(i, n - i);
+  }
+  static void lerp(float* self, const float* end, float w, int64_t n) {
+    const bool near_self = std::abs(w) < 0.5f;
+    const typename V::Reg wv = V::set1(near_self ? w : 1.0f - w);
+    const auto one = [&](typename V::Reg s, typename V::Reg e) {
+      const typename V::Reg d = V::sub(e, s);
+      return near_self ? V::fmadd(wv, d, s) : V::fnmadd(d, wv, e);
+    };
+    int64_t i = 0;
+    for (; i + V::kWidth <= n; i += V::kWidth)
+      V::store(self + i, one(V::load(self + i), V::load(end + i)));
+    if (i < n)
+      V::store_partial(self + i, one(V::load_partial(self + i, n - i), V::load_partial(end + i, n - i)),
+                       n - i);
   }
 };
 

@@ -16,12 +16,13 @@ struct VectorKernelTable {
   void (*relu_gradient)(const float*, float*, int64_t);
   void (*transpose)(const float*, int64_t, int64_t, int64_t, float*, int64_t);
   void (*adam_step)(float*, const float*, float*, float*, int64_t, const AdamCoefficients&);
+  void (*lerp)(float*, const float*, float, int64_t);
 };
 
 template <typename K>
 VectorKernelTable make_table(const char* isa) {
-  return {isa,     &K::bias_rows,     &K::bias_cols, &K::sin,
-          &K::cos, &K::relu_gradient, &K::transpose, &K::adam_step};
+  return {isa,           &K::bias_rows, &K::bias_cols, &K::sin, &K::cos, &K::relu_gradient,
+          &K::transpose, &K::adam_step, &K::lerp};
 }
 
 // Defined in vector_math_<isa>.cpp; call only where the CPU has the instruction set.

@@ -48,6 +48,9 @@ struct Sse2 {
   static Reg add(Reg a, Reg b) { return _mm_add_ps(a, b); }
   static Reg sub(Reg a, Reg b) { return _mm_sub_ps(a, b); }
   static Reg mul(Reg a, Reg b) { return _mm_mul_ps(a, b); }
+  // a b + c and c - a b; SSE2 has no fused multiply-add, so the product is rounded first.
+  static Reg fmadd(Reg a, Reg b, Reg c) { return _mm_add_ps(_mm_mul_ps(a, b), c); }
+  static Reg fnmadd(Reg a, Reg b, Reg c) { return _mm_sub_ps(c, _mm_mul_ps(a, b)); }
   static Reg div(Reg a, Reg b) { return _mm_div_ps(a, b); }
   static Reg sqrt(Reg a) { return _mm_sqrt_ps(a); }
   // g where y > 0, else +0.
@@ -119,6 +122,9 @@ void transpose_copy(const float* src, int64_t rows, int64_t cols, int64_t lds, f
 }
 void adam_step(float* p, const float* g, float* m, float* v, int64_t n, const AdamCoefficients& c) {
   chosen().adam_step(p, g, m, v, n, c);
+}
+void lerp(float* self, const float* end, float weight, int64_t n) {
+  chosen().lerp(self, end, weight, n);
 }
 const char* vector_isa() {
   return chosen().isa;

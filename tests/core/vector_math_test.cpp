@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include <torch/torch.h>
+
 #include "hlt/simd/vector_math.h"
 #include "hlt/util/error.h"
 #include "support/subprocess.h"
@@ -177,6 +179,32 @@ TEST_P(VectorMath, AdamStepGivesTheScalarArithmeticsBitsOnEveryLength) {
     EXPECT_EQ(p, rp) << "n = " << n;
     EXPECT_EQ(m, rm) << "n = " << n;
     EXPECT_EQ(v, rv) << "n = " << n;
+  }
+}
+
+TEST_P(VectorMath, LerpIsAtensArithmeticInBothBranchesOnEveryLength) {
+  const bool fused = GetParam() != "sse2";
+  for (float w : {0.005f, -0.3f, 0.7f, 1.0f}) {
+    for (int64_t n : {1, 7, 16, 33, 100}) {
+      std::vector<float> self = test_points(n);
+      const std::vector<float> end = test_points(n + 5);
+      std::vector<float> expected(n);
+      for (int64_t i = 0; i < n; ++i) {
+        const float s = self[i], e = end[i + 5], d = e - s;
+        if (std::abs(w) < 0.5f) {
+          expected[i] = fused ? std::fma(w, d, s) : s + w * d;
+        } else {
+          expected[i] = fused ? std::fma(-d, 1.0f - w, e) : e - d * (1.0f - w);
+        }
+      }
+      // ATen's lerp_ on the same values agrees to within one rounding of the product.
+      at::Tensor aten = torch::tensor(self);
+      aten.lerp_(torch::tensor(std::vector<float>(end.begin() + 5, end.end())), w);
+      lerp(self.data(), end.data() + 5, w, n);
+      EXPECT_EQ(self, expected) << "w = " << w << ", n = " << n;
+      for (int64_t i = 0; i < n; ++i)
+        EXPECT_NEAR(self[i], aten[i].item<float>(), 1e-6f * (1.0f + std::abs(self[i])));
+    }
   }
 }
 

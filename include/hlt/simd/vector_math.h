@@ -40,6 +40,12 @@ struct AdamCoefficients {
 };
 void adam_step(float* p, const float* g, float* m, float* v, int64_t n, const AdamCoefficients& c);
 
+// self += weight (end - self) in place, ATen's lerp_ arithmetic: self + weight (end - self) for |weight| <
+// 0.5, else end - (end - self) (1 - weight), each as one fused multiply-add on AVX2 and AVX-512 (where
+// ATen's own lerp kernel, a scalar loop in LibTorch 1.13, contracts to the same instruction), a rounded
+// product and an add on SSE2. The target networks' Polyak average.
+void lerp(float* self, const float* end, float weight, int64_t n);
+
 // The instruction set in use: "avx512", "avx2" or "sse2".
 const char* vector_isa();
 // Uses the named instruction set's kernels from now on (tests and benchmarks compare them); throws
