@@ -56,6 +56,16 @@ std::vector<torch::Tensor> random_inputs(const Case& c, int64_t batch, torch::Dt
   return x;
 }
 
+// The inputs, then every layer's weight and bias: everything a chain's gradient reaches.
+std::vector<torch::Tensor> inputs_and_parameters(const Case& c, const std::vector<torch::Tensor>& x) {
+  std::vector<torch::Tensor> wrt = x;
+  for (const auto& layer : c.chain.layers) {
+    wrt.push_back(layer->weight);
+    wrt.push_back(layer->bias);
+  }
+  return wrt;
+}
+
 TEST(DenseChain, ValuesAndEveryGradientMatchAutogradThroughTheModule) {
   for (Case& c : cases(torch::kFloat64)) {
     SCOPED_TRACE(c.name);
@@ -67,11 +77,7 @@ TEST(DenseChain, ValuesAndEveryGradientMatchAutogradThroughTheModule) {
 
     // A random seed, gradients with respect to the inputs and all the parameters.
     const torch::Tensor seed = torch::randn_like(y);
-    std::vector<torch::Tensor> wrt = x;
-    for (const auto& layer : c.chain.layers) {
-      wrt.push_back(layer->weight);
-      wrt.push_back(layer->bias);
-    }
+    const std::vector<torch::Tensor> wrt = inputs_and_parameters(c, x);
     const auto g = torch::autograd::grad({y}, wrt, {seed});
     const auto g_ref = torch::autograd::grad({y_ref}, wrt, {seed});
     ASSERT_EQ(g.size(), g_ref.size());
@@ -108,11 +114,7 @@ TEST(DenseChain, FloatValuesMatchTheModule) {
     EXPECT_LT((y - y_ref).abs().max().item<double>(), 1e-5);
     // The float path has its own kernels (vector sin and cos, the ReLU mask pass): its gradients too.
     const torch::Tensor seed = torch::randn_like(y);
-    std::vector<torch::Tensor> wrt = x;
-    for (const auto& layer : c.chain.layers) {
-      wrt.push_back(layer->weight);
-      wrt.push_back(layer->bias);
-    }
+    const std::vector<torch::Tensor> wrt = inputs_and_parameters(c, x);
     const auto g = torch::autograd::grad({y}, wrt, {seed}),
                g_ref = torch::autograd::grad({y_ref}, wrt, {seed});
     for (size_t i = 0; i < g.size(); ++i)
