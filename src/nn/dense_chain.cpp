@@ -152,8 +152,11 @@ struct DenseChainNode : torch::autograd::Function<DenseChainNode> {
         const at::Tensor x0 = all[0].stride(1) == 1 ? all[0] : all[0].contiguous();
         out = at::empty_like(values.back());
         row_map<T>(out) = row_map<T>(values.back()) + row_map<T>(x0);
+      } else if (flags & kTanh) {
+        out = values.back().clone();
       } else {
         out = values.back();
+        values.pop_back();
       }
     });
     // The inputs and weights go through save_for_backward, so that changing one in place between the two
@@ -161,8 +164,10 @@ struct DenseChainNode : torch::autograd::Function<DenseChainNode> {
     ctx->save_for_backward(all.vec());
     ctx->saved_data["values"] = values;
     ctx->saved_data["setup"] = num_inputs * 8 + flags;
-    // The output must not alias a value the backward pass reads (tanh's y); the last layer's z is not read.
-    return (flags & kTanh) && !(flags & kResidual) ? out.clone() : out;
+    // The node must not hold its own output: output -> grad_fn -> saved values -> output is a reference cycle
+    // that leaks the whole graph. So tanh's y, which the backward pass reads, was cloned, and the last
+    // layer's z, which it does not read, was dropped.
+    return out;
   }
 
   static variable_list backward(AutogradContext* ctx, variable_list grads) {

@@ -162,6 +162,23 @@ TEST(DenseChain, AWeightChangedInPlaceBeforeTheBackwardPassIsAnError) {
   EXPECT_THROW(torch::autograd::grad({y.sum()}, {x[0]}), c10::Error);
 }
 
+// The node must not hold its own output: a strong reference from the node to the output it is the grad_fn of
+// is a cycle that neither refcount ever breaks, and every call would leak its whole graph (the deterministic
+// planner lost ~36 KB per action this way). Once the output and the inputs are gone, the node is gone too.
+TEST(DenseChain, TheGraphIsFreedWithItsOutput) {
+  for (Case& c : cases(torch::kFloat64)) {
+    SCOPED_TRACE(c.name);
+    std::weak_ptr<torch::autograd::Node> node;
+    {
+      const auto x = random_inputs(c, 3, torch::kFloat64);
+      const torch::Tensor y = dense_chain(c.chain, x);
+      node = y.grad_fn();
+      ASSERT_FALSE(node.expired());
+    }
+    EXPECT_TRUE(node.expired());
+  }
+}
+
 TEST(DenseChain, BadInputsAreClearErrors) {
   Case c = cases(torch::kFloat64).front();  // dynamics: takes n + m = 6 columns, residual of width 4
   const auto wide = torch::randn({2, 5}, torch::kFloat64), a = torch::randn({2, 2}, torch::kFloat64);
