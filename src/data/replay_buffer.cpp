@@ -1,8 +1,10 @@
 #include "hlt/data/replay_buffer.h"
 
+#include <algorithm>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include <torch/torch.h>
 
@@ -53,9 +55,10 @@ ReplayBuffer::ReplayBuffer(int64_t capacity, int64_t state_dim, int64_t action_d
     dones_ = torch::zeros({capacity, 1}, opts);
   } catch (const c10::Error&) {
     // A memory limit (ulimit -v, a cgroup) below what the machine reports as available.
-    throw Error(fmt::format("cannot allocate a replay buffer of {} transitions ({:.1f} GB): out of memory; "
-                            "lower train.replay_capacity",
-                            capacity, bytes / 1e9));
+    throw Error(
+        fmt::format("cannot allocate a replay buffer of {} transitions ({:.1f} GB): out of memory; "
+                    "lower train.replay_capacity",
+                    capacity, bytes / 1e9));
   }
 }
 
@@ -74,14 +77,23 @@ void ReplayBuffer::add(const double* state, const double* action, double reward,
 Batch ReplayBuffer::sample(int64_t batch_size) {
   check(size_ > 0, "cannot sample from an empty replay buffer");
   check(batch_size > 0, "batch size must be positive, got {}", batch_size);
-  torch::Tensor idx = torch::empty({batch_size}, torch::kInt64);
-  int64_t* p = idx.data_ptr<int64_t>();
+  std::vector<int64_t> idx(static_cast<size_t>(batch_size));
   std::uniform_int_distribution<int64_t> pick(0, size_ - 1);
-  for (int64_t i = 0; i < batch_size; ++i)
-    p[i] = pick(rng_);
-  return {states_.index_select(0, idx),       actions_.index_select(0, idx),
-          rewards_.index_select(0, idx),      next_states_.index_select(0, idx),
-          next_actions_.index_select(0, idx), dones_.index_select(0, idx)};
+  for (int64_t& i : idx)
+    i = pick(rng_);
+  // Rows copied by hand: the same values as six index_select calls, without their dispatch (6 samples per
+  // agent step).
+  auto gather = [&](const at::Tensor& from) {
+    const int64_t width = from.size(1);
+    at::Tensor to = at::empty({batch_size, width}, from.options());
+    const float* src = from.data_ptr<float>();
+    float* dst = to.data_ptr<float>();
+    for (int64_t i = 0; i < batch_size; ++i)
+      std::copy_n(src + idx[static_cast<size_t>(i)] * width, width, dst + i * width);
+    return to;
+  };
+  return {gather(states_),      gather(actions_),      gather(rewards_),
+          gather(next_states_), gather(next_actions_), gather(dones_)};
 }
 
 Batch ReplayBuffer::all() const {
