@@ -17,6 +17,7 @@ ModelLearner::ModelLearner(DynamicsModel dynamics, RewardModel reward, const Mod
 ModelLosses ModelLearner::update(const Batch& b) {
   // Both backward passes are written by hand (no autograd graph): each writes its own parameters'
   // gradients, so the flat gradient buffer needs no zeroing.
+  c10::InferenceMode guard;
   ModelLosses losses;
   losses.dynamics = dynamics_->loss_with_gradient(b.states, b.actions, b.next_states);
   losses.reward =

@@ -113,9 +113,11 @@ const AdjointTrace& DeterministicHybrid::analyse(const at::Tensor& state) {
   }
   AdjointTrace& tr = trace_;
 
-  // 1. Forward rollout under the policy mean (zero action without a policy), batch of one.
+  // 1. Forward rollout under the policy mean (zero action without a policy), batch of one. InferenceMode,
+  // not only no gradients: its ~40 dispatched ops then skip autograd's bookkeeping too. The buffers the
+  // batched passes create here are used in inference mode only (the mode insertion gradient's step is too).
   {
-    torch::NoGradGuard no_grad;
+    torch::InferenceMode guard;
     X_[0].copy_(state);
     models_.prepare(1);
     if (has_policy) policy_forward_->prepare(1);

@@ -1,6 +1,7 @@
 #include "hlt/nn/dense_layers.h"
 
 #include <ATen/ATen.h>
+#include <c10/core/InferenceMode.h>
 
 #include "hlt/util/error.h"
 
@@ -49,6 +50,7 @@ DenseStack::DenseStack(const torch::nn::ModuleList& layers, Activation hidden) :
 }
 
 const at::Tensor& DenseStack::forward(const at::Tensor& x) {
+  c10::InferenceMode guard;  // no graph is needed, and the buffers stay in one mode
   input_ = x;
   const at::Tensor* in = &input_;
   for (size_t i = 0; i + 1 < layers_.size(); ++i) {
@@ -61,6 +63,7 @@ const at::Tensor& DenseStack::forward(const at::Tensor& x) {
 }
 
 void DenseStack::backward(at::Tensor& grad_out) {
+  c10::InferenceMode guard;
   at::Tensor* g = &grad_out;
   for (size_t i = layers_.size(); i-- > 0;) {
     auto& layer = layers_[i];

@@ -45,7 +45,7 @@ double DynamicsModelImpl::loss_with_gradient(const torch::Tensor& state, const t
                                              const torch::Tensor& next_state, double scale) {
   // The products go through BLAS (ATen's out= kernels); everything elementwise but sin and cos runs as
   // Eigen expressions over the same buffers, without dispatched ops.
-  torch::NoGradGuard no_grad;
+  c10::InferenceMode guard;  // its buffers are only ever touched in inference mode
   const int64_t batch = state.size(0), n = options_.state_dim, m = options_.action_dim;
   check(state.is_contiguous() && action.is_contiguous() && next_state.is_contiguous() &&
             state.scalar_type() == fc1->weight.scalar_type(),

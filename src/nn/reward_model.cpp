@@ -46,7 +46,7 @@ double RewardModelImpl::td_loss_with_gradient(const torch::Tensor& state, const 
                                               double gamma, double scale) {
   // The hidden layers' products go through BLAS (ATen's out= kernels); the one-output last layer, the
   // ReLUs, the target and the bias gradients run as Eigen expressions over the same buffers.
-  torch::NoGradGuard no_grad;
+  c10::InferenceMode guard;  // its buffers are only ever touched in inference mode
   const int64_t batch = state.size(0), n = options_.state_dim, m = options_.action_dim, h = options_.hidden;
   for (const torch::Tensor* t : {&state, &action, &reward, &next_state, &next_action, &done})
     check(t->is_contiguous() && t->scalar_type() == fc1->weight.scalar_type(),

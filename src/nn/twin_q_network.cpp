@@ -44,7 +44,7 @@ torch::Tensor TwinQNetworkImpl::min_q(const torch::Tensor& state, const torch::T
 }
 
 const torch::Tensor& TwinQNetworkImpl::forward_keep(const torch::Tensor& state, const torch::Tensor& action) {
-  torch::NoGradGuard no_grad;
+  c10::InferenceMode guard;  // its buffers are only ever touched in inference mode
   at::cat_out(input_, {state, action}, 1);
   const size_t layers = weights.size();
   while (outputs_.size() < layers) {
@@ -60,7 +60,7 @@ const torch::Tensor& TwinQNetworkImpl::forward_keep(const torch::Tensor& state, 
 }
 
 void TwinQNetworkImpl::backward_parameters(const torch::Tensor& grad_q) {
-  torch::NoGradGuard no_grad;
+  c10::InferenceMode guard;  // its buffers are only ever touched in inference mode
   const torch::Tensor x = input_.unsqueeze(0).expand({2, input_.size(0), input_.size(1)});
   torch::Tensor g = grad_q;
   for (size_t l = weights.size(); l-- > 0;) {
@@ -75,7 +75,7 @@ void TwinQNetworkImpl::backward_parameters(const torch::Tensor& grad_q) {
 }
 
 torch::Tensor TwinQNetworkImpl::backward_action(const torch::Tensor& grad_q) {
-  torch::NoGradGuard no_grad;
+  c10::InferenceMode guard;  // its buffers are only ever touched in inference mode
   torch::Tensor g = grad_q;
   for (size_t l = weights.size(); l-- > 1;) {
     at::bmm_out(grads_[l - 1], g, weights[l].transpose(1, 2));
