@@ -31,6 +31,9 @@ Config make_train_config() {
       .add_bool(
           "eval.components", true,
           "for hybrid methods also evaluate the policy alone and the model-based planner alone (Fig. 4)")
+      .add_bool("eval.trace", false,
+                "write every evaluation's episodes step by step (observation, action, reward) to "
+                "<run>/eval_traces/step<env steps>[_policy|_planner].csv")
       .add_bool("eval.compare_density", false,
                 "diagnostic for hybrid-stochastic: also evaluate the same networks with the other p(v) "
                 "(planner.density_tanh_correction toggled), logged as eval/other_density_return_mean")

@@ -371,14 +371,25 @@ struct Trainer::Impl {
 
   void evaluate() {
     const int64_t episodes_per_eval = config.get_int("eval.episodes");
+    const bool trace = config.get_bool("eval.trace");
     for (auto& [label, ctrl] : evaluators) {
       ControllerPolicy policy(*ctrl, [this](Controller& c) { tell_interactions(c); });
       std::vector<EpisodeStats> episodes;
+      TrajectoryCsv csv(eval_env->observation_dim(), eval_env->action_dim());
       for (int64_t e = 0; e < episodes_per_eval; ++e) {
+        std::function<void(const Transition&)> on_step;
+        if (trace) on_step = [&](const Transition& t) { csv.add(static_cast<int>(e), t); };
         // The same start states at every evaluation, so curves compare like with like.
         episodes.push_back(run_episode(*eval_env, policy,
-                                       derive_seed(seed, kEvalEpisode) ^ static_cast<uint64_t>(e), {},
+                                       derive_seed(seed, kEvalEpisode) ^ static_cast<uint64_t>(e), on_step,
                                        [&] { policy.reset(); }));
+      }
+      if (trace) {
+        const fs::path traces = fs::path(dir) / kEvalTraceDir;
+        fs::create_directories(traces);
+        write_file_atomic(
+            (traces / fmt::format("step{}{}.csv", env_steps, label.empty() ? "" : "_" + label)).string(),
+            csv.text());
       }
       const ReturnSummary summary = summarize(episodes);
       const std::string prefix = label.empty() ? "eval/" : "eval/" + label + "_";
@@ -670,6 +681,8 @@ std::unique_ptr<Trainer> Trainer::resume(const std::string& run_dir, std::option
   auto impl = std::make_unique<Impl>();
   impl->lock = std::make_unique<DirectoryLock>(run_dir);
   remove_stale_temporaries(run_dir);
+  if (fs::is_directory(fs::path(run_dir) / kEvalTraceDir))
+    remove_stale_temporaries((fs::path(run_dir) / kEvalTraceDir).string());
   impl->dir = run_dir;
   impl->config = make_train_config();
   impl->config.load_file(cfg.string());

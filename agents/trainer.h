@@ -45,6 +45,8 @@ class Trainer {
   static constexpr const char* kLogFile = "scalars.csv";
   static constexpr const char* kCheckpointFile = "checkpoint.pt";  // resumable state, at episode ends
   static constexpr const char* kFinalFile = "final.pt";            // the networks when the run stopped
+  // eval.trace: every evaluation's episodes step by step, step<env steps>[_<component>].csv (TrajectoryCsv).
+  static constexpr const char* kEvalTraceDir = "eval_traces";
 
  private:
   struct Impl;

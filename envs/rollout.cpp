@@ -114,6 +114,25 @@ EpisodeStats run_episode(Env& env, PolicySource& policy, std::optional<uint64_t>
   }
 }
 
+TrajectoryCsv::TrajectoryCsv(int observation_dim, int action_dim) {
+  text_ = "episode,step";
+  for (int i = 0; i < observation_dim; ++i)
+    text_ += fmt::format(",obs_{}", i);
+  for (int i = 0; i < action_dim; ++i)
+    text_ += fmt::format(",action_{}", i);
+  text_ += ",reward,done,truncated\n";
+}
+
+void TrajectoryCsv::add(int episode, const Transition& t) {
+  text_ += fmt::format("{},{}", episode, t.step);
+  for (Eigen::Index i = 0; i < t.observation.size(); ++i)
+    text_ += fmt::format(",{:.17g}", t.observation[i]);
+  for (Eigen::Index i = 0; i < t.action.size(); ++i)
+    text_ += fmt::format(",{:.17g}", t.action[i]);
+  text_ +=
+      fmt::format(",{:.17g},{},{}\n", t.result.reward, t.result.done() ? 1 : 0, t.result.truncated ? 1 : 0);
+}
+
 ReturnSummary summarize(const std::vector<EpisodeStats>& episodes) {
   ReturnSummary s;
   if (episodes.empty()) return s;

@@ -56,6 +56,19 @@ EpisodeStats run_episode(Env& env, PolicySource& policy, std::optional<uint64_t>
                          const std::function<void(const Transition&)>& on_step = {},
                          const std::function<void()>& on_reset = {}, int max_steps = 0);
 
+// Episodes step by step as CSV text, one row per transition: episode, step, the observation the action was
+// chosen from (obs_i), the action (action_i), reward, done, truncated; values with 17 significant digits.
+// Used by hlt_rollout --csv and by the trainer's evaluation traces (eval.trace).
+class TrajectoryCsv {
+ public:
+  TrajectoryCsv(int observation_dim, int action_dim);
+  void add(int episode, const Transition& t);
+  const std::string& text() const { return text_; }
+
+ private:
+  std::string text_;
+};
+
 struct ReturnSummary {
   double mean_return = 0.0;
   double std_return = 0.0;  // population standard deviation

@@ -11,7 +11,6 @@
 #include <iostream>
 #include <memory>
 #include <optional>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -222,15 +221,7 @@ int run(Options o, bool frame_skip_given) {
              o.frame_skip != 1 ? fmt::format(", frame skip {}", o.frame_skip) : "", policy->describe(),
              o.seed);
 
-  std::ostringstream csv;
-  if (!o.csv.empty()) {
-    csv << "episode,step";
-    for (int i = 0; i < env->observation_dim(); ++i)
-      csv << ",obs_" << i;
-    for (int i = 0; i < env->action_dim(); ++i)
-      csv << ",action_" << i;
-    csv << ",reward,done,truncated\n";
-  }
+  TrajectoryCsv csv(env->observation_dim(), env->action_dim());
   check(o.max_steps >= 0, "--max-steps must be >= 0, got {}", o.max_steps);
   std::optional<Demonstrations> demos;
   if (!o.demos.empty())
@@ -248,15 +239,7 @@ int run(Options o, bool frame_skip_given) {
     auto on_step = [&](const Transition& t) {
       // The step's timing is taken before this tool's own work on it (CSV, frames, demonstrations).
       if (perception) perception->after_step();
-      if (!o.csv.empty()) {
-        csv << ep << ',' << t.step;
-        for (Eigen::Index i = 0; i < t.observation.size(); ++i)
-          csv << fmt::format(",{:.17g}", t.observation[i]);
-        for (Eigen::Index i = 0; i < t.action.size(); ++i)
-          csv << fmt::format(",{:.17g}", t.action[i]);
-        csv << fmt::format(",{:.17g},{},{}\n", t.result.reward, t.result.done() ? 1 : 0,
-                           t.result.truncated ? 1 : 0);
-      }
+      if (!o.csv.empty()) csv.add(ep, t);
       if (record) recorder.add(env->render(o.width, o.height));
       if (demos)
         demo_steps.push_back({t.observation, t.action, t.result.observation, t.result.reward,
@@ -290,7 +273,7 @@ int run(Options o, bool frame_skip_given) {
                demos->transitions());
   }
   if (!o.csv.empty()) {
-    write_file_atomic(o.csv, csv.str());
+    write_file_atomic(o.csv, csv.text());
     fmt::print("wrote {}\n", o.csv);
   }
   if (!o.video.empty() && recorder.frames() > 0) {

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <thread>
 
 #include <fmt/format.h>
@@ -295,6 +296,57 @@ TEST(TrainCli, ParallelUpdatesGiveTheSameNumbers) {
   EXPECT_EQ(comparable_rows(two + "/scalars.csv"), rows);
   // The run records the BLAS kernel it used, first in its config.
   EXPECT_EQ(read_file(one + "/config.yaml").rfind("# blas: ", 0), 0u);
+}
+
+// eval.trace writes each evaluation of each component step by step; the rewards of a trace add up to the
+// return the log reports for it, and tracing changes none of the run's numbers.
+TEST(TrainCli, EvalTraceRecordsEveryEvaluationStepByStep) {
+  const std::string args = kSmall + " --method hybrid-stochastic --steps 100 eval.every=50";
+  const std::string plain = fresh_dir("no_trace"), traced = fresh_dir("trace");
+  Result r = run(kTrain + args + " --out " + plain);
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run(kTrain + args + " eval.trace=true --out " + traced);
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(comparable_rows(traced + "/scalars.csv"), comparable_rows(plain + "/scalars.csv"));
+  EXPECT_FALSE(fs::exists(plain + "/eval_traces"));
+
+  std::map<std::string, double> logged;  // "<step>/<tag>" -> value
+  for (const auto& row : ScalarLogger::read(traced + "/scalars.csv"))
+    logged[fmt::format("{}/{}", row.step, row.tag)] = row.value;
+  int files = 0;
+  for (int64_t step : {0, 200, 400}) {  // every 50 agent steps of frame skip 4
+    for (const std::string component : {"", "policy", "planner"}) {
+      SCOPED_TRACE(fmt::format("step {} {}", step, component));
+      const std::string path =
+          fmt::format("{}/eval_traces/step{}{}.csv", traced, step, component.empty() ? "" : "_" + component);
+      ASSERT_TRUE(fs::exists(path));
+      std::istringstream lines(read_file(path));
+      std::string header, line;
+      std::getline(lines, header);
+      EXPECT_EQ(header.rfind("episode,step,obs_0,", 0), 0u) << header;
+      EXPECT_NE(header.find(",action_0,reward,done,truncated"), std::string::npos) << header;
+      int rows = 0;
+      double total = 0;
+      while (std::getline(lines, line)) {
+        ++rows;
+        // reward is the third column from the end
+        std::vector<std::string> cells;
+        std::istringstream split(line);
+        for (std::string c; std::getline(split, c, ',');)
+          cells.push_back(c);
+        ASSERT_GE(cells.size(), 5u);
+        EXPECT_EQ(cells[0], "0");
+        EXPECT_EQ(cells[1], std::to_string(rows - 1));
+        total += std::stod(cells[cells.size() - 3]);
+      }
+      EXPECT_EQ(rows, 50);  // one pendulum episode of 50 agent steps (eval.episodes=1)
+      const std::string tag = component.empty() ? "eval/return_mean" : "eval/" + component + "_return_mean";
+      ASSERT_TRUE(logged.count(fmt::format("{}/{}", step, tag)));
+      EXPECT_NEAR(total, logged[fmt::format("{}/{}", step, tag)], 1e-9);
+      ++files;
+    }
+  }
+  EXPECT_EQ(files, 9);
 }
 
 TEST(TrainCli, KilledWhileWritingCheckpointOrFinalResumesToTheSameLog) {
