@@ -7,8 +7,8 @@
 
 #include <torch/torch.h>
 
+#include "hlt/nn/activation.h"
 #include "hlt/nn/batched_forward.h"
-#include "hlt/simd/vector_math.h"
 #include "hlt/util/error.h"
 
 namespace hlt {
@@ -53,41 +53,6 @@ void gemm(bool trans_a, bool trans_b, int64_t M, int64_t N, int64_t K, const T* 
   at::Tensor c = view(C, M, N, ldc, false);
   at::addmm_out(c, c, view(A, trans_a ? K : M, trans_a ? M : K, lda, trans_a),
                 view(B, trans_b ? N : K, trans_b ? K : N, ldb, trans_b), beta, alpha);
-}
-
-// d = act(z) elementwise over n values (float sin through hlt's vector kernels).
-template <typename T>
-void activate_values(const T* z, T* h, int64_t n, Activation act) {
-  if (act == Activation::kSin) {
-    if constexpr (std::is_same_v<T, float>) {
-      vector_sin(z, h, n);
-    } else {
-      for (int64_t i = 0; i < n; ++i)
-        h[i] = std::sin(z[i]);
-    }
-  } else {
-    Eigen::Map<Eigen::Array<T, Eigen::Dynamic, 1>>(h, n) =
-        Eigen::Map<const Eigen::Array<T, Eigen::Dynamic, 1>>(z, n).max(T(0));
-  }
-}
-
-// g *= act'(z) elementwise, given the forward's z and h = act(z); `scratch` holds n values.
-template <typename T>
-void activation_gradient(T* g, const T* z, const T* h, T* scratch, int64_t n, Activation act) {
-  Eigen::Map<Eigen::Array<T, Eigen::Dynamic, 1>> gm(g, n);
-  if (act == Activation::kSin) {
-    if constexpr (std::is_same_v<T, float>) {
-      vector_cos(z, scratch, n);
-    } else {
-      for (int64_t i = 0; i < n; ++i)
-        scratch[i] = std::cos(z[i]);
-    }
-    gm *= Eigen::Map<const Eigen::Array<T, Eigen::Dynamic, 1>>(scratch, n);
-  } else if constexpr (std::is_same_v<T, float>) {
-    relu_gradient(h, g, n);
-  } else {
-    gm = (Eigen::Map<const Eigen::Array<T, Eigen::Dynamic, 1>>(h, n) > T(0)).select(gm, T(0));
-  }
 }
 
 // The settings that travel from the forward to the backward pass, packed into one saved integer.
@@ -138,7 +103,7 @@ struct DenseChainNode : torch::autograd::Function<DenseChainNode> {
         values.push_back(z);
         if (l + 1 < layers) {
           at::Tensor h = at::empty({B, fan_out}, opts);
-          activate_values<T>(z.data_ptr<T>(), h.data_ptr<T>(), z.numel(), act);
+          activate_values(z.data_ptr<T>(), h.data_ptr<T>(), z.numel(), act);
           values.push_back(h);
         }
       }
@@ -224,9 +189,9 @@ struct DenseChainNode : torch::autograd::Function<DenseChainNode> {
         if (l > 0) {
           // Through layer l - 1's activation: values[2l - 1] is its z, values[2l] its h.
           at::Tensor scratch = act == Activation::kSin ? at::empty({B, fan_in}, opts) : at::Tensor();
-          activation_gradient<T>(g_below.data_ptr<T>(), values[2 * l - 1].data_ptr<T>(),
-                                 values[2 * l].data_ptr<T>(),
-                                 scratch.defined() ? scratch.data_ptr<T>() : nullptr, g_below.numel(), act);
+          activation_gradient(g_below.data_ptr<T>(), values[2 * l - 1].data_ptr<T>(),
+                              values[2 * l].data_ptr<T>(),
+                              scratch.defined() ? scratch.data_ptr<T>() : nullptr, g_below.numel(), act);
         }
         g = g_below;
       }

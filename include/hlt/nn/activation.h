@@ -2,6 +2,7 @@
 // ReLU for locomotion.
 #pragma once
 
+#include <cstdint>
 #include <string>
 
 #include <ATen/core/Tensor.h>
@@ -25,5 +26,16 @@ void relu_gradient_of(const at::Tensor& y, at::Tensor& grad);
 // for sin's cos(x).
 void activation_backward_(at::Tensor& grad, const at::Tensor& x, const at::Tensor& y, Activation a,
                           at::Tensor& scratch);
+
+// The same over n contiguous values, without dispatched ops; the tensor forms above use them for contiguous
+// float tensors. y = activate(x) (float sin through hlt's vector kernels, double through std::sin; ReLU keeps
+// NaN and -0 as at::relu does). grad *= d activate(x) / dx given y = activate(x) (ReLU: 0 where y is not
+// positive, as relu_gradient_of); `scratch` holds n values, for sin's cos(x).
+void activate_values(const float* x, float* y, int64_t n, Activation a);
+void activate_values(const double* x, double* y, int64_t n, Activation a);
+void activation_gradient(float* grad, const float* x, const float* y, float* scratch, int64_t n,
+                         Activation a);
+void activation_gradient(double* grad, const double* x, const double* y, double* scratch, int64_t n,
+                         Activation a);
 
 }  // namespace hlt
