@@ -122,7 +122,8 @@ void relu_gradient_of(const at::Tensor& y, at::Tensor& grad) {
 void activation_backward_(at::Tensor& grad, const at::Tensor& x, const at::Tensor& y, Activation a,
                           at::Tensor& scratch) {
   if (vector_kernels_apply(grad) && vector_kernels_apply(x) && vector_kernels_apply(y) &&
-      grad.numel() == x.numel() && y.numel() == x.numel() && scratch.scalar_type() == at::kFloat) {
+      grad.numel() == x.numel() && y.numel() == x.numel() &&
+      (a != Activation::kSin || (scratch.defined() && scratch.scalar_type() == at::kFloat))) {
     if (a == Activation::kSin) scratch.resize_(x.sizes());
     activation_gradient(grad.data_ptr<float>(), x.data_ptr<float>(), y.data_ptr<float>(),
                         a == Activation::kSin ? scratch.data_ptr<float>() : nullptr, x.numel(), a);
