@@ -5,10 +5,10 @@
 #include <utility>
 
 #include <ATen/CPUGeneratorImpl.h>
-#include <ATen/Dispatch.h>
 #include <torch/torch.h>
 
 #include "hlt/core/checkpoint.h"
+#include "hlt/nn/batched_forward.h"
 #include "hlt/simd/vector_math.h"
 #include "hlt/util/error.h"
 
@@ -40,7 +40,8 @@ std::pair<torch::Tensor, torch::Tensor> td_errors(const torch::Tensor& q, const 
             rc.scalar_type() == qc.scalar_type() && dc.scalar_type() == qc.scalar_type(),
         "SAC's TD errors need q [2, B, 1] and [B, 1] rewards, dones and log-probabilities of its dtype");
   torch::Tensor td = at::empty_like(qc), grad = at::empty_like(qc);
-  AT_DISPATCH_FLOATING_TYPES(qc.scalar_type(), "td_errors", [&] {
+  dispatch_floating(qc, [&](auto tag) {
+    using scalar_t = decltype(tag);
     const scalar_t one = 1, a = static_cast<scalar_t>(alpha), g = static_cast<scalar_t>(gamma),
                    scale = static_cast<scalar_t>(2.0 / batch);
     const scalar_t *pq = qc.data_ptr<scalar_t>(), *pt = tc.data_ptr<scalar_t>(),
@@ -69,7 +70,8 @@ torch::Tensor min_q_gradient(const torch::Tensor& q, double batch) {
   const torch::Tensor qc = q.contiguous();
   torch::Tensor grad = at::empty_like(qc);
   const int64_t n = qc.size(1) * qc.size(2);
-  AT_DISPATCH_FLOATING_TYPES(qc.scalar_type(), "min_q_gradient", [&] {
+  dispatch_floating(qc, [&](auto tag) {
+    using scalar_t = decltype(tag);
     const scalar_t g = static_cast<scalar_t>(-1.0 / batch);
     const scalar_t g_tie = g * static_cast<scalar_t>(0.5);
     const scalar_t* q0 = qc.data_ptr<scalar_t>();
@@ -99,7 +101,8 @@ std::pair<torch::Tensor, torch::Tensor> actor_gradients(const torch::Tensor& gra
             rc.sizes() == ac.sizes(),
         "SAC's actor gradient needs tensors of one shape");
   torch::Tensor grad_u = at::empty_like(ac), grad_log_std = at::empty_like(ac);
-  AT_DISPATCH_FLOATING_TYPES(ac.scalar_type(), "actor_gradients", [&] {
+  dispatch_floating(ac, [&](auto tag) {
+    using scalar_t = decltype(tag);
     const scalar_t one = 1, entropy_scale = static_cast<scalar_t>(2.0 * alpha / batch),
                    tanh_eps = static_cast<scalar_t>(kTanhEpsilon),
                    alpha_b = static_cast<scalar_t>(alpha / batch), lo = static_cast<scalar_t>(log_std_min),
