@@ -50,6 +50,8 @@ DeterministicHybridOptions deterministic_options(const Config& c, bool evaluatio
   o.exploration_decay = c.get_double("deterministic.exploration_decay");
   o.explore = !evaluation;
   if (with_policy) {
+    if (c.get_string("deterministic.exploration") == "policy")
+      o.exploration = DeterministicExploration::kPolicy;
     const std::string rule = c.get_string("deterministic.action_rule");
     if (rule == "bounded") o.rule = DeterministicActionRule::kBounded;
     if (rule == "squashed") o.rule = DeterministicActionRule::kBoundedSquashed;

@@ -120,9 +120,18 @@ Config make_train_config() {
           "rule); 'squashed' = tanh(mu_raw + the same bounded correction) (zero correction is the policy's "
           "action; see DeterministicActionRule). The model-based baseline always uses 'exact'",
           {"bounded", "exact", "squashed"})
-      .add_double("deterministic.exploration_decay", 0.999,
-                  "exploration noise std = decay^t, t counting agent steps (environment interactions)", 0.0,
-                  1.0);
+      .add_string(
+          "deterministic.exploration", "policy",
+          "hybrid-deterministic's training noise: 'policy' = a draw of the policy's own Gaussian in "
+          "place of its mean inside the action rule, so that zero correction executes what SAC would; "
+          "'decay' = N(0, exploration_decay^t) added to a* (the authors'; see DeterministicExploration). "
+          "The model-based baseline always uses 'decay'",
+          {"decay", "policy"})
+      .add_double(
+          "deterministic.exploration_decay", 0.999,
+          "deterministic.exploration=decay (and the model-based baseline): noise std = decay^t, t counting "
+          "agent steps (environment interactions)",
+          0.0, 1.0);
   return c;
 }
 

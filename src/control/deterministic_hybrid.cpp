@@ -165,11 +165,13 @@ const AdjointTrace& DeterministicHybrid::analyse(const at::Tensor& state) {
     const Eigen::VectorXd rho0 = tr.rho.row(0).transpose().cwiseMax(-1.0).cwiseMin(1.0);
     const Eigen::VectorXd dtanh = (1.0 - tr.mean_raw.array().tanh().square()).matrix();
     const Eigen::VectorXd correction = dtanh.cwiseProduct(J.fa.middleRows(0, n).transpose() * rho0);
-    tr.action = tr.mean_raw + tr.sigma.cwiseProduct(correction);
+    tr.correction = tr.sigma.cwiseProduct(correction);
+    tr.action = tr.mean_raw + tr.correction;
     if (options_.rule == DeterministicActionRule::kBoundedSquashed)
       tr.action = tr.action.array().tanh().matrix();
   } else {
-    tr.action = tr.mean_action + tr.sigma.cwiseProduct(tr.dreturn_da0);
+    tr.correction = tr.sigma.cwiseProduct(tr.dreturn_da0);
+    tr.action = tr.mean_action + tr.correction;
   }
   return tr;
 }
@@ -209,7 +211,24 @@ at::Tensor DeterministicHybrid::compute_action(const at::Tensor& state) {
   }
 
   Eigen::VectorXd action = a_star;
-  if (options_.explore) {
+  if (options_.explore && options_.exploration == DeterministicExploration::kPolicy &&
+      policy_forward_.has_value()) {
+    // A draw u = mu_raw + Sigma^(1/2) eps of the policy's Gaussian takes the place of mu_raw in the rule.
+    const Eigen::VectorXd u = tr.mean_raw + tr.sigma.cwiseSqrt().cwiseProduct(
+                                                to_eigen(torch::randn({m, 1}, torch::kFloat64)).col(0));
+    switch (options_.rule) {
+      case DeterministicActionRule::kExact:
+        action = u.array().tanh().matrix() + tr.correction;
+        break;
+      case DeterministicActionRule::kBounded:
+        action = u + tr.correction;
+        break;
+      case DeterministicActionRule::kBoundedSquashed:
+        action = (u + tr.correction).array().tanh().matrix();
+        break;
+    }
+    action = action.cwiseMax(-1.0).cwiseMin(1.0);
+  } else if (options_.explore) {
     const double std = std::pow(options_.exploration_decay, static_cast<double>(interactions_));
     action += std * to_eigen(torch::randn({m, 1}, torch::kFloat64)).col(0);
   }

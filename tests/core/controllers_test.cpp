@@ -281,6 +281,62 @@ TEST(DeterministicHybrid, BoundedRuleMatchesHandComputationAndRespectsClamps) {
   }
 }
 
+// With exploration from the policy, a training action is the rule applied to a draw u ~ N(mu_raw, Sigma) in
+// place of mu_raw: under the squashed rule atanh(a) - correction - mu_raw, under the bounded rule a -
+// correction - mu_raw, and under the exact rule atanh(a - correction) - mu_raw are the policy's own noise,
+// mean 0 and standard deviation Sigma^(1/2) (0.15 here, so nothing is clipped), independent across steps.
+TEST(DeterministicHybrid, PolicyExplorationDrawsThePolicysGaussianInsideTheRule) {
+  const int n = 3, m = 1;
+  Models md = random_models(n, m, 17, std::log(0.15));
+  {
+    // mu_raw = 0.05 everywhere, far enough from the clip at +-1 for 4 standard deviations of noise.
+    torch::NoGradGuard g;
+    auto last_mean = md.policy->mean_layers[1]->as<torch::nn::Linear>();
+    last_mean->weight.zero_();
+    last_mean->bias.fill_(0.05);
+  }
+  auto s0 = torch::randn({n}, torch::kFloat64);
+  for (auto rule : {DeterministicActionRule::kBoundedSquashed, DeterministicActionRule::kBounded,
+                    DeterministicActionRule::kExact}) {
+    DeterministicHybridOptions o{5, false, 0.999, true};
+    o.rule = rule;
+    o.exploration = DeterministicExploration::kPolicy;
+    DeterministicHybrid ctrl(md.policy, md.dynamics, md.reward, o);
+    // The decay schedule would be silent by now; the policy's noise is not.
+    ctrl.set_interactions(100000);
+    torch::manual_seed(3);
+    const int draws = 4000;
+    double sum = 0, sum_sq = 0, lag = 0, previous = 0;
+    for (int i = 0; i < draws; ++i) {
+      const double a = ctrl.act(s0)[0].item<double>();
+      const AdjointTrace& tr = ctrl.trace();
+      ASSERT_LT(std::abs(tr.mean_raw[0] + tr.correction[0]), 0.3) << "the test needs an unsaturated a*";
+      double noise = 0;
+      if (rule == DeterministicActionRule::kBoundedSquashed)
+        noise = std::atanh(a) - tr.correction[0] - tr.mean_raw[0];
+      else if (rule == DeterministicActionRule::kBounded)
+        noise = a - tr.correction[0] - tr.mean_raw[0];
+      else
+        noise = std::atanh(a - tr.correction[0]) - tr.mean_raw[0];
+      sum += noise;
+      sum_sq += noise * noise;
+      lag += noise * previous;
+      previous = noise;
+    }
+    const double mean = sum / draws, sd = std::sqrt(sum_sq / draws - mean * mean);
+    // Standard errors: 0.15 / sqrt(4000) = 0.0024 for the mean, about 0.0017 for the std, 0.00036 for the
+    // lag-1 product.
+    EXPECT_NEAR(mean, 0.0, 0.01) << static_cast<int>(rule);
+    EXPECT_NEAR(sd, 0.15, 0.0075) << static_cast<int>(rule);
+    EXPECT_NEAR(lag / draws, 0.0, 0.0015) << static_cast<int>(rule);
+    // Evaluation (explore off) executes a* itself.
+    o.explore = false;
+    DeterministicHybrid quiet(md.policy, md.dynamics, md.reward, o);
+    const double a_quiet = quiet.act(s0)[0].item<double>();
+    EXPECT_NEAR(a_quiet, std::clamp(quiet.trace().action[0], -1.0, 1.0), 1e-12);
+  }
+}
+
 // One state, one action: s' = s (the model cannot move), r(s, a) = -|s + a - goal|. The best action at every
 // step is goal - s, so the optimal plan is constant and known.
 Models known_answer_models(double goal) {

@@ -5,9 +5,10 @@
 // rho_t = g_t + A_t^T rho_{t+1} with rho_H = 0, A_t = df/ds + df/da dmu/ds, g_t = dr/ds + dr/da dmu/ds, and
 // applies a* = mu(s0) + Sigma(s0) (dr/da|_0 + B_0^T rho_1) + eps, clipped to [-1, 1] (the exact rule; see
 // DeterministicActionRule for the bounded rule the training config uses by default), where
-// eps ~ N(0, decay^t) over all environment interactions t (agent steps). It reports the mode insertion
-// gradient (r(s0, a*) - r(s0, mu(s0))) + rho_1^T (f(s0, a*) - f(s0, mu(s0))). Without a policy (mu = 0, Sigma
-// = I) it is the model-based deterministic baseline.
+// eps ~ N(0, decay^t) over all environment interactions t (agent steps), or the policy's own noise
+// (DeterministicExploration). It reports the mode insertion gradient (r(s0, a*) - r(s0, mu(s0))) +
+// rho_1^T (f(s0, a*) - f(s0, mu(s0))). Without a policy (mu = 0, Sigma = I) it is the model-based
+// deterministic baseline.
 #pragma once
 
 #include <optional>
@@ -48,6 +49,18 @@ enum class DeterministicActionRule {
   kBoundedSquashed,
 };
 
+// Where the exploration noise of a training action comes from.
+enum class DeterministicExploration {
+  // eps ~ N(0, decay^t) added to the clipped a* (the authors' schedule): gone after a few thousand agent
+  // steps, after which every stored action is the planner's deterministic one.
+  kDecay,
+  // The policy's own Gaussian: the noise Sigma^(1/2) eps is added to the pre-tanh mean before the rule
+  // squashes or clips it, so that with zero correction the executed action is a draw of the policy, as SAC's
+  // own behaviour is, and the exploration left is whatever entropy SAC's temperature keeps. Without a policy
+  // (the model-based baseline) it falls back to kDecay.
+  kPolicy,
+};
+
 struct DeterministicHybridOptions {
   int64_t horizon = 5;
   // The authors clamp rho to [-1, 1] before use; off by default (the unclamped rho is the exact gradient).
@@ -56,6 +69,7 @@ struct DeterministicHybridOptions {
   // 0.999 in the paper).
   double exploration_decay = 0.999;
   bool explore = true;
+  DeterministicExploration exploration = DeterministicExploration::kDecay;
   DeterministicActionRule rule = DeterministicActionRule::kExact;
 };
 
@@ -70,6 +84,7 @@ struct AdjointTrace {
   Eigen::VectorXd mean_action;  // [m] mu(s0) = tanh(mu_raw(s0)) (zero without a policy)
   Eigen::VectorXd mean_raw;     // [m] mu_raw(s0), the policy's pre-tanh mean (zero without a policy)
   Eigen::VectorXd action;       // [m] a* before exploration noise and clipping
+  Eigen::VectorXd correction;   // [m] what the rule adds to the policy: to mu (exact) or to mu_raw (bounded)
 };
 
 // Jacobians of the models along a trajectory, by autograd, all steps in one backward pass. Row blocks per
@@ -114,7 +129,7 @@ class DeterministicHybrid : public Controller {
   int64_t interactions_ = 0;
   AdjointTrace trace_;
   at::Tensor X_, A_, reward0_;  // the rollout: states [H + 1, n], actions [H, m], r(s0, mu(s0)) [1]
-  std::vector<at::Tensor> x_rows_, a_rows_;  // their rows as [1, n] / [1, m] batches of one
+  std::vector<at::Tensor> x_rows_, a_rows_;        // their rows as [1, n] / [1, m] batches of one
   at::Tensor mig_action_, mig_next_, mig_reward_;  // a* [1, m], f(s0, a*) [1, n], r(s0, a*) [1]
 };
 
