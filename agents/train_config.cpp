@@ -37,6 +37,12 @@ Config make_train_config() {
       .add_bool("eval.compare_density", false,
                 "diagnostic for hybrid-stochastic: also evaluate the same networks with the other p(v) "
                 "(planner.density_tanh_correction toggled), logged as eval/other_density_return_mean")
+      .add_string(
+          "eval.variants", "",
+          "diagnostic: ';'-separated sets of space-separated key=value overrides; each set is one more "
+          "evaluation of the method's controller built with those overrides, logged as "
+          "eval/variant<i>_return_mean. The variants run with the random number generator's state "
+          "restored afterwards, so they change none of the run's other numbers")
       .add_int("checkpoint.every", 5000, "agent steps between checkpoints (written at the next episode end)",
                1, big)
       .add_string("imitation.expert", "",

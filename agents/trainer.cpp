@@ -3,6 +3,7 @@
 #include <ATen/CPUGeneratorImpl.h>
 #include <torch/torch.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -35,6 +36,18 @@ using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// The non-empty pieces of `text` between `separator`s.
+std::vector<std::string> split(const std::string& text, char separator) {
+  std::vector<std::string> pieces;
+  size_t start = 0;
+  while (start <= text.size()) {
+    const size_t end = std::min(text.find(separator, start), text.size());
+    if (end > start) pieces.push_back(text.substr(start, end - start));
+    start = end + 1;
+  }
+  return pieces;
 }
 
 // Seed streams derived from the run seed (see derive_seed). Learner i's generator is kLearnerNoise + i (SAC,
@@ -90,6 +103,8 @@ struct Trainer::Impl {
   bool imitation = false;
   std::unique_ptr<Controller> controller;
   std::vector<std::pair<std::string, std::unique_ptr<Controller>>> evaluators;  // label, controller
+  // eval.variants: evaluated after the others with the generator's state put back, so the run is unchanged.
+  std::vector<std::pair<std::string, std::unique_ptr<Controller>>> variant_evaluators;
   std::unique_ptr<ScalarLogger> log;
   // train.threads = 2: runs the first learner's updates (SAC's) beside the others'.
   std::unique_ptr<WorkerThread> worker;
@@ -177,6 +192,19 @@ struct Trainer::Impl {
                 config.get_bool("planner.density_tanh_correction") ? "false" : "true",
                 "eval.compare_density");
       evaluators.emplace_back("other_density", make_controller(method->controller, models, other, true));
+    }
+    const std::vector<std::string> variants = split(config.get_string("eval.variants"), ';');
+    for (size_t v = 0; v < variants.size(); ++v) {
+      Config other = config;
+      for (const std::string& kv : split(variants[v], ' ')) {
+        check(kv.rfind("eval.", 0) != 0,
+              "eval.variants: '{}' sets an evaluation key; a variant may only "
+              "change how the controller is built",
+              kv);
+        other.apply_override(kv);
+      }
+      variant_evaluators.emplace_back(fmt::format("variant{}", v),
+                                      make_controller(method->controller, models, other, true));
     }
     next_checkpoint = config.get_int("checkpoint.every");
     update_after = config.get_int("train.update_after");
@@ -369,34 +397,45 @@ struct Trainer::Impl {
     }
   }
 
-  void evaluate() {
+  // One evaluation of `ctrl`: eval.episodes episodes from the fixed start states, logged under `label`.
+  void evaluate_controller(const std::string& label, Controller& ctrl) {
     const int64_t episodes_per_eval = config.get_int("eval.episodes");
     const bool trace = config.get_bool("eval.trace");
-    for (auto& [label, ctrl] : evaluators) {
-      ControllerPolicy policy(*ctrl, [this](Controller& c) { tell_interactions(c); });
-      std::vector<EpisodeStats> episodes;
-      TrajectoryCsv csv(eval_env->observation_dim(), eval_env->action_dim());
-      for (int64_t e = 0; e < episodes_per_eval; ++e) {
-        std::function<void(const Transition&)> on_step;
-        if (trace) on_step = [&](const Transition& t) { csv.add(static_cast<int>(e), t); };
-        // The same start states at every evaluation, so curves compare like with like.
-        episodes.push_back(run_episode(*eval_env, policy,
-                                       derive_seed(seed, kEvalEpisode) ^ static_cast<uint64_t>(e), on_step,
-                                       [&] { policy.reset(); }));
-      }
-      if (trace) {
-        const fs::path traces = fs::path(dir) / kEvalTraceDir;
-        fs::create_directories(traces);
-        write_file_atomic(
-            (traces / fmt::format("step{}{}.csv", env_steps, label.empty() ? "" : "_" + label)).string(),
-            csv.text());
-      }
-      const ReturnSummary summary = summarize(episodes);
-      const std::string prefix = label.empty() ? "eval/" : "eval/" + label + "_";
-      log->log(env_steps, prefix + "return_mean", summary.mean_return);
-      log->log(env_steps, prefix + "return_std", summary.std_return);
-      if (summary.success_rate) log->log(env_steps, prefix + "success_rate", *summary.success_rate);
-      if (label.empty()) last_eval = summary.mean_return;
+    ControllerPolicy policy(ctrl, [this](Controller& c) { tell_interactions(c); });
+    std::vector<EpisodeStats> episodes;
+    TrajectoryCsv csv(eval_env->observation_dim(), eval_env->action_dim());
+    for (int64_t e = 0; e < episodes_per_eval; ++e) {
+      std::function<void(const Transition&)> on_step;
+      if (trace) on_step = [&](const Transition& t) { csv.add(static_cast<int>(e), t); };
+      // The same start states at every evaluation, so curves compare like with like.
+      episodes.push_back(run_episode(*eval_env, policy,
+                                     derive_seed(seed, kEvalEpisode) ^ static_cast<uint64_t>(e), on_step,
+                                     [&] { policy.reset(); }));
+    }
+    if (trace) {
+      const fs::path traces = fs::path(dir) / kEvalTraceDir;
+      fs::create_directories(traces);
+      write_file_atomic(
+          (traces / fmt::format("step{}{}.csv", env_steps, label.empty() ? "" : "_" + label)).string(),
+          csv.text());
+    }
+    const ReturnSummary summary = summarize(episodes);
+    const std::string prefix = label.empty() ? "eval/" : "eval/" + label + "_";
+    log->log(env_steps, prefix + "return_mean", summary.mean_return);
+    log->log(env_steps, prefix + "return_std", summary.std_return);
+    if (summary.success_rate) log->log(env_steps, prefix + "success_rate", *summary.success_rate);
+    if (label.empty()) last_eval = summary.mean_return;
+  }
+
+  void evaluate() {
+    for (auto& [label, ctrl] : evaluators)
+      evaluate_controller(label, *ctrl);
+    if (!variant_evaluators.empty()) {
+      at::Generator generator = at::detail::getDefaultCPUGenerator();
+      const at::Tensor state = generator.get_state();
+      for (auto& [label, ctrl] : variant_evaluators)
+        evaluate_controller(label, *ctrl);
+      generator.set_state(state);
     }
     ++evaluations;
   }

@@ -349,6 +349,37 @@ TEST(TrainCli, EvalTraceRecordsEveryEvaluationStepByStep) {
   EXPECT_EQ(files, 9);
 }
 
+TEST(TrainCli, EvalVariantsChangeNoOtherNumber) {
+  const std::string args = kSmall + " --method hybrid-stochastic --steps 100 eval.every=50";
+  const std::string plain = fresh_dir("no_variants"), varied = fresh_dir("variants");
+  Result r = run(kTrain + args + " --out " + plain);
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run(kTrain + args +
+          " \"eval.variants=planner.min_ess_fraction=0.5; planner.samples=2 planner.plan_samples=0\"" +
+          " --out " + varied);
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::vector<std::string> others;
+  std::map<std::string, double> variant;  // "<step>/<tag>" -> value
+  for (const auto& row : ScalarLogger::read(varied + "/scalars.csv")) {
+    if (row.tag.rfind("eval/variant", 0) == 0)
+      variant[fmt::format("{}/{}", row.step, row.tag)] = row.value;
+    else if (row.tag.rfind("time/", 0) != 0)
+      others.push_back(fmt::format("{},{},{:.17g}", row.step, row.tag, row.value));
+  }
+  EXPECT_EQ(others, comparable_rows(plain + "/scalars.csv"));
+  for (int64_t step : {0, 200, 400}) {
+    for (const std::string tag : {"variant0_return_mean", "variant1_return_mean", "variant1_return_std"})
+      EXPECT_TRUE(variant.count(fmt::format("{}/eval/{}", step, tag))) << step << " " << tag;
+  }
+  EXPECT_EQ(variant.size(), 12u);
+  // A variant may not change the evaluation itself, and its keys are checked like any override.
+  for (const std::string bad : {"eval.episodes=3", "planner.nonsense=1", "planner.samples=0"}) {
+    r = run(kTrain + args + " eval.variants=" + bad + " --out " + fresh_dir("bad_variant"));
+    EXPECT_NE(r.code, 0) << bad;
+    EXPECT_NE(r.output.find(bad.substr(0, bad.find('='))), std::string::npos) << r.output;
+  }
+}
+
 TEST(TrainCli, KilledWhileWritingCheckpointOrFinalResumesToTheSameLog) {
   const std::string args = kSmall + " --method sac --steps 200 checkpoint.every=50 eval.every=50";
   const std::string straight = fresh_dir("write_straight");
