@@ -38,6 +38,7 @@ StochasticHybridOptions stochastic_options(const Config& c) {
   o.lambda = c.get_double("planner.lambda");
   o.density_in_weights = c.get_bool("planner.density_in_weights");
   o.min_ess = c.get_double("planner.min_ess_fraction") * static_cast<double>(o.samples);
+  o.clamp_to_domain = c.get_bool("planner.clamp_to_data");
   return o;
 }
 

@@ -5,6 +5,10 @@
 #include "hlt/core/checkpoint.h"
 
 namespace hlt {
+namespace {
+const char* const kDomainLow = "models.domain_low";
+const char* const kDomainHigh = "models.domain_high";
+}  // namespace
 
 ModelLearner::ModelLearner(DynamicsModel dynamics, RewardModel reward, const ModelLearnerOptions& options)
     : options_(options), dynamics_(std::move(dynamics)), reward_(std::move(reward)) {
@@ -24,6 +28,9 @@ ModelLosses ModelLearner::update(const Batch& b) {
       reward_->td_loss_with_gradient(b.states, b.actions, b.rewards, b.next_states, b.next_actions, b.dones,
                                      options_.reward_gamma, options_.reward_weight);
   optimizer_->step();
+  // The domain grows with the data the dynamics model is fitted to (for planner.clamp_to_data).
+  dynamics_->extend_domain(b.states);
+  dynamics_->extend_domain(b.next_states);
   return losses;
 }
 
@@ -41,10 +48,17 @@ void ModelLearner::load(CheckpointReader& r) {
 
 void ModelLearner::save_training_state(CheckpointWriter& w) const {
   optimizer_->save(w, "models");
+  if (dynamics_->has_domain()) {
+    w.add_tensor(kDomainLow, dynamics_->domain_low());
+    w.add_tensor(kDomainHigh, dynamics_->domain_high());
+  }
 }
 
 void ModelLearner::load_training_state(CheckpointReader& r) {
   optimizer_->load(r, "models");
+  // Checkpoints from before the domain was kept have none: it then grows again from the next batches.
+  if (r.has(kDomainLow) && r.has(kDomainHigh))
+    dynamics_->set_domain(r.tensor(kDomainLow), r.tensor(kDomainHigh));
 }
 
 }  // namespace hlt

@@ -106,6 +106,11 @@ Config make_train_config() {
       .add_bool("planner.mean_rollout", false,
                 "hybrid-stochastic: the first policy rollout follows the policy's mean action instead of a "
                 "draw, so the planner can choose the policy's own action")
+      .add_bool(
+          "planner.clamp_to_data", false,
+          "stochastic planners (hybrid-stochastic, NN-MPPI): keep the predicted states inside the range "
+          "of the states the dynamics model was trained on (per dimension), so the planner does not act "
+          "on the model's extrapolation beyond its data")
       .add_bool("planner.density_in_weights", true, "include log p(v) in the stochastic planner's weights")
       .add_double("planner.min_ess_fraction", 0.0,
                   "if > 0, temper a step's J / lambda so its weights' effective sample size is at least this "

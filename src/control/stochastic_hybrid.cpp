@@ -6,6 +6,21 @@
 
 namespace hlt {
 
+void clamp_rows(at::Tensor& rows, const at::Tensor& low, const at::Tensor& high) {
+  check(rows.dim() == 2 && low.dim() == 1 && high.dim() == 1 && low.size(0) == rows.size(1) &&
+            high.size(0) == rows.size(1) && low.scalar_type() == rows.scalar_type() &&
+            high.scalar_type() == rows.scalar_type(),
+        "clamp_rows: bounds must be [{}] of the rows' dtype", rows.dim() == 2 ? rows.size(1) : -1);
+  dispatch_floating(rows, [&](auto tag) {
+    using T = decltype(tag);
+    const int64_t n = rows.size(1);
+    Eigen::Map<const Eigen::Array<T, 1, Eigen::Dynamic>> lo(low.data_ptr<T>(), n), hi(high.data_ptr<T>(), n);
+    auto r = row_map<T>(rows);
+    for (Eigen::Index i = 0; i < r.rows(); ++i)
+      r.row(i) = r.row(i).array().max(lo).min(hi).matrix();
+  });
+}
+
 StochasticHybrid::StochasticHybrid(std::shared_ptr<ActionSampler> sampler, DynamicsModel dynamics,
                                    RewardModel reward, const StochasticHybridOptions& options,
                                    GaussianPolicy fallback_policy, std::string name)
@@ -71,9 +86,11 @@ at::Tensor StochasticHybrid::compute_action(const at::Tensor& state) {
   sampler_->begin(K, plan_);
   at::Tensor* s = &states_a_;
   at::Tensor* s_next = &states_b_;
+  const bool clamp = options_.clamp_to_domain && dynamics_->has_domain();
   for (int64_t t = 0; t < H; ++t) {
     sampler_->sample(t, *s, plan_rows_[t], sample_rows_[t]);
     models_.step(*s, sample_rows_[t], *s_next, &reward_rows_[t]);
+    if (clamp) clamp_rows(*s_next, dynamics_->domain_low(), dynamics_->domain_high());
     std::swap(s, s_next);
   }
   // The samples' log-density is only computed where the weights use it.

@@ -1,6 +1,7 @@
 #include "hlt/nn/dynamics_model.h"
 
 #include <cmath>
+#include <limits>
 
 #include <torch/torch.h>
 
@@ -25,6 +26,38 @@ torch::Tensor DynamicsModelImpl::forward(const torch::Tensor& state, const torch
 
 DenseChain DynamicsModelImpl::chain() const {
   return DenseChain{{fc1, fc2}, options_.activation, /*tanh_output=*/false, /*residual=*/true};
+}
+
+void DynamicsModelImpl::extend_domain(const torch::Tensor& states) {
+  const int64_t n = options_.state_dim;
+  check(states.dim() == 2 && states.size(1) == n,
+        "DynamicsModel::extend_domain: states must be [B, {}], got {}", n, fmt::join(states.sizes(), "x"));
+  if (states.size(0) == 0) return;
+  // Called on every model update: Eigen over the raw rows, not a dozen dispatched tensor ops.
+  const torch::Tensor s = states.to(fc1->weight.scalar_type()).contiguous();
+  dispatch_floating(s, [&](auto tag) {
+    using T = decltype(tag);
+    Eigen::Map<const RowMatrix<T>> rows(s.data_ptr<T>(), s.size(0), n);
+    check(rows.allFinite(), "DynamicsModel::extend_domain: states are not finite");
+    if (!has_domain()) {
+      domain_low_ = torch::full({n}, std::numeric_limits<T>::infinity(), s.options().requires_grad(false));
+      domain_high_ = torch::full({n}, -std::numeric_limits<T>::infinity(), s.options().requires_grad(false));
+    }
+    Eigen::Map<Eigen::Matrix<T, 1, Eigen::Dynamic>> low(domain_low_.data_ptr<T>(), n),
+        high(domain_high_.data_ptr<T>(), n);
+    low = low.cwiseMin(rows.colwise().minCoeff());
+    high = high.cwiseMax(rows.colwise().maxCoeff());
+  });
+}
+
+void DynamicsModelImpl::set_domain(const torch::Tensor& low, const torch::Tensor& high) {
+  const int64_t n = options_.state_dim;
+  check(low.dim() == 1 && high.dim() == 1 && low.size(0) == n && high.size(0) == n,
+        "DynamicsModel::set_domain: bounds must be [{}], got {} and {}", n, fmt::join(low.sizes(), "x"),
+        fmt::join(high.sizes(), "x"));
+  check((low <= high).all().item<bool>(), "DynamicsModel::set_domain: a lower bound exceeds its upper bound");
+  domain_low_ = low.to(fc1->weight.scalar_type()).clone().contiguous();
+  domain_high_ = high.to(fc1->weight.scalar_type()).clone().contiguous();
 }
 
 torch::Tensor DynamicsModelImpl::log_std() const {

@@ -106,6 +106,13 @@ TEST(Learner, EachLearnerAddsItsNetworksReportsFixedTagsAndResumesExactly) {
     ASSERT_EQ(second.size(), first.size());
     for (size_t k = 0; k < first.size(); ++k)
       EXPECT_EQ(second[k].value, first[k].value) << name << " " << first[k].tag;
+    if (name == "models") {
+      // The dynamics model's domain (the range of the states it was trained on) resumes with it.
+      ASSERT_TRUE(models.dynamics->has_domain() && other.dynamics->has_domain());
+      EXPECT_TRUE(torch::equal(other.dynamics->domain_low(), models.dynamics->domain_low()));
+      EXPECT_TRUE(torch::equal(other.dynamics->domain_high(), models.dynamics->domain_high()));
+      EXPECT_TRUE((models.dynamics->domain_low() < models.dynamics->domain_high()).all().item<bool>());
+    }
   }
   std::filesystem::remove(path);
 }

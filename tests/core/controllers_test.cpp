@@ -452,6 +452,65 @@ TEST(StochasticHybrid, WeightsAreFiniteNormalisedAndFollowTheFormula) {
   EXPECT_TRUE(torch::allclose(hybrid.weights().sum(1), torch::ones({6}, torch::kFloat64)));
 }
 
+// With clamp_to_domain every predicted state is clamped into the dynamics model's domain before the next
+// step: the weights equal the formula's along clamped rollouts (and differ from unclamped ones).
+TEST(StochasticHybrid, ClampToDomainKeepsThePredictedStatesInTheModelsDomain) {
+  torch::manual_seed(4);
+  Models md = random_models(3, 2, 23);
+  const double lambda = 0.5;
+  StochasticHybridOptions o{6, 30, lambda, true, 0.0};
+  o.clamp_to_domain = true;
+  StochasticHybrid hybrid(std::make_shared<PolicySampler>(md.policy), md.dynamics, md.reward, o, md.policy);
+  const auto s0 = torch::randn({3}, torch::kFloat64);
+  // Before the model has a domain nothing is clamped; a domain tighter than the rollouts then binds.
+  EXPECT_FALSE(md.dynamics->has_domain());
+  const auto low = s0 - torch::tensor({0.05, 0.5, 0.0}, torch::kFloat64);
+  const auto high = s0 + torch::tensor({0.05, 0.0, 0.5}, torch::kFloat64);
+  md.dynamics->set_domain(low, high);
+  hybrid.act(s0);
+  const auto w = hybrid.weights().clone();
+  torch::NoGradGuard g;
+  auto weights_along = [&](bool clamp) {
+    auto V = hybrid.samples();  // [H, K, m]
+    auto s = s0.unsqueeze(0).expand({30, 3});
+    std::vector<torch::Tensor> r;
+    int clamped = 0;
+    for (int t = 0; t < 6; ++t) {
+      r.push_back(md.reward->forward(s, V[t]).squeeze(-1));
+      s = md.dynamics->forward(s, V[t]);
+      if (clamp) {
+        const auto c = torch::max(torch::min(s, high), low);
+        clamped += (c != s).sum().item<int>();
+        s = c;
+      }
+    }
+    if (clamp) {
+      EXPECT_GT(clamped, 30);  // the domain binds on many samples and steps
+    }
+    auto J = torch::stack(r).flip(0).cumsum(0).flip(0);
+    return torch::softmax(J / lambda + hybrid.log_density(), 1);
+  };
+  EXPECT_TRUE(torch::allclose(w, weights_along(true), 1e-9, 1e-12));
+  EXPECT_FALSE(torch::allclose(w, weights_along(false), 1e-6, 1e-9));
+}
+
+TEST(DynamicsModel, DomainIsTheRangeOfTheStatesItWasGiven) {
+  DynamicsModel model(DynamicsModelOptions{2, 1, 8});
+  EXPECT_FALSE(model->has_domain());
+  model->extend_domain(torch::tensor({{1.0, -2.0}, {3.0, 0.5}}));
+  model->extend_domain(torch::tensor({{2.0, -4.0}}, torch::kFloat64));  // converted to the model's dtype
+  model->extend_domain(torch::empty({0, 2}));                           // nothing to add
+  ASSERT_TRUE(model->has_domain());
+  EXPECT_TRUE(torch::equal(model->domain_low(), torch::tensor({1.0f, -4.0f})));
+  EXPECT_TRUE(torch::equal(model->domain_high(), torch::tensor({3.0f, 0.5f})));
+  EXPECT_THROW(model->extend_domain(torch::tensor({{1.0, std::nan("")}})), Error);
+  EXPECT_THROW(model->extend_domain(torch::zeros({2, 3})), Error);
+  EXPECT_THROW(model->set_domain(torch::tensor({1.0, 0.0}), torch::tensor({0.0, 1.0})), Error);
+  EXPECT_THROW(model->set_domain(torch::zeros({3}), torch::ones({3})), Error);
+  // A rejected batch leaves the domain as it was.
+  EXPECT_TRUE(torch::equal(model->domain_low(), torch::tensor({1.0f, -4.0f})));
+}
+
 // Without the tanh correction the weights use the policy's Gaussian N(mu, Sigma) at the pre-tanh sample u.
 TEST(StochasticHybrid, GaussianDensityIsThePolicysGaussianAtThePreTanhSample) {
   torch::manual_seed(4);

@@ -31,6 +31,12 @@ struct StochasticHybridOptions {
   // the paper's weights still fall on the one sample the models overrate most, and the planner acts with
   // a single draw of the policy (measured on the Ant imitation task: docs/RESULTS.md).
   double min_ess = 0;
+  // Keep every predicted state inside the dynamics model's domain (the per-dimension range of the states
+  // it was trained on; DynamicsModelImpl::domain_low/high), clamping after each model step. Why: beyond
+  // its data a smooth model extrapolates, and the weights then favour samples for the model's errors there
+  // (on the cart-pole, a cart that the model lets run through the end of its rail). No effect until the
+  // model has a domain.
+  bool clamp_to_domain = false;
 };
 
 // The planner's weights [H, K] from scaled returns J / lambda [H, K] and, if given, the samples'
@@ -72,6 +78,9 @@ RowMatrix<T> planner_weights(const RowMatrix<T>& scaled_returns, const RowMatrix
   }
   return w;
 }
+
+// rows [B, n] (rows contiguous) clamped per column to [low, high] ([n] each, the rows' dtype), in place.
+void clamp_rows(at::Tensor& rows, const at::Tensor& low, const at::Tensor& high);
 
 class StochasticHybrid : public Controller {
  public:

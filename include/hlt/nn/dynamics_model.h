@@ -45,8 +45,20 @@ class DynamicsModelImpl : public torch::nn::Module {
   torch::nn::Linear fc1{nullptr}, fc2{nullptr};
   torch::Tensor log_std_param;
 
+  // The model's domain: per state dimension, the least and greatest value of the states it was trained on
+  // (its learner extends it with every batch's states and next states). A planner can keep its predicted
+  // states inside it, where the model has data, instead of letting it extrapolate (planner.clamp_to_data).
+  // Undefined tensors until the first extend_domain().
+  void extend_domain(const torch::Tensor& states);
+  void set_domain(const torch::Tensor& low, const torch::Tensor& high);
+  bool has_domain() const { return domain_low_.defined(); }
+  // [n] each, the model's dtype.
+  const torch::Tensor& domain_low() const { return domain_low_; }
+  const torch::Tensor& domain_high() const { return domain_high_; }
+
  private:
   DynamicsModelOptions options_;
+  torch::Tensor domain_low_, domain_high_;
   // loss_with_gradient's buffers, kept between calls.
   torch::Tensor x_ = empty_buffer(), h_ = empty_buffer(), act_ = empty_buffer(), mean_ = empty_buffer(),
                 z_ = empty_buffer(), g_mean_ = empty_buffer(), g_act_ = empty_buffer(), cos_ = empty_buffer();
