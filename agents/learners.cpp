@@ -78,7 +78,9 @@ std::unique_ptr<Learner> make_sac_learner(LearnerContext& context) {
   so.q_hidden = c.get_int_list("sac.q_hidden");
   so.initial_alpha = c.get_double("sac.initial_alpha");
   so.seed = context.seed;
-  return std::make_unique<Sac>(policy, context.state_dim, context.action_dim, so);
+  auto sac = std::make_unique<Sac>(policy, context.state_dim, context.action_dim, so);
+  context.models.critics = sac->critics();
+  return sac;
 }
 
 // Model learner ----------------------------------------------------------------------------------------

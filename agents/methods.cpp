@@ -39,6 +39,7 @@ StochasticHybridOptions stochastic_options(const Config& c) {
   o.density_in_weights = c.get_bool("planner.density_in_weights");
   o.min_ess = c.get_double("planner.min_ess_fraction") * static_cast<double>(o.samples);
   o.clamp_to_domain = c.get_bool("planner.clamp_to_data");
+  o.terminal_value_weight = c.get_double("planner.terminal_value");
   return o;
 }
 
@@ -82,15 +83,27 @@ std::unique_ptr<Controller> make_stochastic_hybrid(const LearnedModels& m, const
     // Without the prior the weights are exp(J / lambda) alone.
     if (!c.get_bool("planner.plan_prior")) o.density_in_weights = false;
   }
-  return std::make_unique<StochasticHybrid>(sampler, m.dynamics, m.reward, o, m.policy, "stochastic_hybrid");
+  TerminalValue value;
+  if (o.terminal_value_weight > 0) {
+    require(!m.critics.is_empty(), "stochastic_hybrid with planner.terminal_value > 0", "SAC critic");
+    // The critic at the policy's own (mean) action: the value of following the policy after the horizon.
+    value = [policy = m.policy, critics = m.critics](const at::Tensor& s) mutable {
+      const at::Tensor x = s.to(critics->weights[0].scalar_type());
+      return critics->min_q(x, policy->mean_action(x));
+    };
+  }
+  return std::make_unique<StochasticHybrid>(sampler, m.dynamics, m.reward, o, m.policy, "stochastic_hybrid",
+                                            std::move(value));
 }
 
 std::unique_ptr<Controller> make_mppi(const LearnedModels& m, const Config& c, bool) {
   require(!m.dynamics.is_empty() && !m.reward.is_empty(), "mppi", "dynamics and reward model");
   auto sampler =
       std::make_shared<FilteredNoiseSampler>(c.get_double("mppi.sigma"), c.get_double("mppi.filter"));
-  return std::make_unique<StochasticHybrid>(sampler, m.dynamics, m.reward, stochastic_options(c), nullptr,
-                                            "mppi");
+  // The baseline has no critic: it plans with the models alone.
+  StochasticHybridOptions o = stochastic_options(c);
+  o.terminal_value_weight = 0;
+  return std::make_unique<StochasticHybrid>(sampler, m.dynamics, m.reward, o, nullptr, "mppi");
 }
 
 std::unique_ptr<Controller> make_deterministic_hybrid(const LearnedModels& m, const Config& c,

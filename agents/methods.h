@@ -11,6 +11,7 @@
 #include "hlt/nn/dynamics_model.h"
 #include "hlt/nn/gaussian_policy.h"
 #include "hlt/nn/reward_model.h"
+#include "hlt/nn/twin_q_network.h"
 #include "hlt/util/config.h"
 
 namespace hlt {
@@ -50,6 +51,7 @@ struct LearnedModels {
   GaussianPolicy policy{nullptr};
   DynamicsModel dynamics{nullptr};
   RewardModel reward{nullptr};
+  TwinQNetwork critics{nullptr};  // SAC's critics (not their target): the planner's terminal value
 };
 
 // Builds the controller registered as `name` from the config's planner settings. `evaluation` switches off

@@ -111,6 +111,12 @@ Config make_train_config() {
           "stochastic planners (hybrid-stochastic, NN-MPPI): keep the predicted states inside the range "
           "of the states the dynamics model was trained on (per dimension), so the planner does not act "
           "on the model's extrapolation beyond its data")
+      .add_double(
+          "planner.terminal_value", 0.0,
+          "hybrid-stochastic: add this weight times SAC's critic at each sample's last predicted state, "
+          "min(Q1, Q2)(s_H, tanh(mu(s_H))), to its predicted return (0: the paper's rule, no value "
+          "beyond the horizon)",
+          0.0, 1e6)
       .add_bool("planner.density_in_weights", true, "include log p(v) in the stochastic planner's weights")
       .add_double("planner.min_ess_fraction", 0.0,
                   "if > 0, temper a step's J / lambda so its weights' effective sample size is at least this "

@@ -23,18 +23,24 @@ void clamp_rows(at::Tensor& rows, const at::Tensor& low, const at::Tensor& high)
 
 StochasticHybrid::StochasticHybrid(std::shared_ptr<ActionSampler> sampler, DynamicsModel dynamics,
                                    RewardModel reward, const StochasticHybridOptions& options,
-                                   GaussianPolicy fallback_policy, std::string name)
+                                   GaussianPolicy fallback_policy, std::string name,
+                                   TerminalValue terminal_value)
     : Controller(std::move(fallback_policy)),
       sampler_(std::move(sampler)),
       dynamics_(dynamics),
       models_(std::move(dynamics), std::move(reward)),
       options_(options),
-      name_(std::move(name)) {
+      name_(std::move(name)),
+      terminal_value_(std::move(terminal_value)) {
   check(sampler_ != nullptr, "{}: needs an action sampler", name_);
   check(options.horizon >= 1 && options.samples >= 1, "{}: horizon and samples must be >= 1", name_);
   check(options.lambda > 0, "{}: lambda must be > 0, got {}", name_, options.lambda);
   check(options.min_ess >= 0 && options.min_ess <= static_cast<double>(options.samples),
         "{}: min_ess must be in [0, samples = {}], got {}", name_, options.samples, options.min_ess);
+  check(options.terminal_value_weight >= 0, "{}: terminal_value_weight must be >= 0, got {}", name_,
+        options.terminal_value_weight);
+  check(options.terminal_value_weight == 0 || terminal_value_,
+        "{}: terminal_value_weight {} needs a value function", name_, options.terminal_value_weight);
   reset();
 }
 
@@ -93,6 +99,13 @@ at::Tensor StochasticHybrid::compute_action(const at::Tensor& state) {
     if (clamp) clamp_rows(*s_next, dynamics_->domain_low(), dynamics_->domain_high());
     std::swap(s, s_next);
   }
+  const bool tail = options_.terminal_value_weight > 0;
+  if (tail) {
+    // *s is s_H, the last predicted state of every sample.
+    terminal_values_ = terminal_value_(*s).reshape({-1}).to(plan_.scalar_type()).contiguous();
+    check(terminal_values_.numel() == K, "{}: the terminal value gave {} values for {} states", name_,
+          terminal_values_.numel(), K);
+  }
   // The samples' log-density is only computed where the weights use it.
   if (options_.density_in_weights) log_density_ = sampler_->log_density(samples_);
 
@@ -103,6 +116,10 @@ at::Tensor StochasticHybrid::compute_action(const at::Tensor& state) {
     RowMatrix<T> J = row_map<T>(rewards_);
     for (int64_t t = H - 2; t >= 0; --t)
       J.row(t) += J.row(t + 1);
+    if (tail) {
+      Eigen::Map<const Eigen::Matrix<T, 1, Eigen::Dynamic>> v(terminal_values_.data_ptr<T>(), K);
+      J.rowwise() += T(options_.terminal_value_weight) * v;
+    }
     // log w = J / lambda (+ log p(v)); normalise in log space: subtracting each step's max keeps exp() in
     // range.
     const RowMatrix<T> scaled = J / T(options_.lambda);

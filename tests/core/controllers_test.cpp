@@ -494,6 +494,55 @@ TEST(StochasticHybrid, ClampToDomainKeepsThePredictedStatesInTheModelsDomain) {
   EXPECT_FALSE(torch::allclose(w, weights_along(false), 1e-6, 1e-9));
 }
 
+// With a terminal value every sample's return at every step also counts weight * V(s_H), its last predicted
+// state's value: the weights equal the formula's with that tail (and differ from the paper's without it).
+TEST(StochasticHybrid, TerminalValueAddsTheLastStatesValueToEveryStepsReturn) {
+  torch::manual_seed(5);
+  Models md = random_models(3, 2, 23);
+  const double lambda = 0.5, weight = 2.0;
+  StochasticHybridOptions o{4, 25, lambda, true, 0.0};
+  o.terminal_value_weight = weight;
+  const auto c = torch::tensor({0.7, -1.3, 0.4}, torch::kFloat64);
+  int calls = 0;
+  TerminalValue value = [&](const at::Tensor& s) {
+    ++calls;
+    return torch::tanh(s.matmul(c));  // [K]
+  };
+  StochasticHybrid hybrid(std::make_shared<PolicySampler>(md.policy), md.dynamics, md.reward, o, md.policy,
+                          "stochastic_hybrid", value);
+  const auto s0 = torch::randn({3}, torch::kFloat64);
+  hybrid.act(s0);
+  EXPECT_EQ(calls, 1);  // one batched call per step for all K samples
+  const auto w = hybrid.weights().clone();
+  torch::NoGradGuard g;
+  auto V = hybrid.samples();  // [H, K, m]
+  auto s = s0.unsqueeze(0).expand({25, 3});
+  std::vector<torch::Tensor> r;
+  for (int t = 0; t < 4; ++t) {
+    r.push_back(md.reward->forward(s, V[t]).squeeze(-1));
+    s = md.dynamics->forward(s, V[t]);
+  }
+  const auto tail = torch::tanh(s.matmul(c));
+  EXPECT_TRUE(torch::allclose(hybrid.terminal_values(), tail, 1e-12, 1e-12));
+  const auto J = torch::stack(r).flip(0).cumsum(0).flip(0);
+  EXPECT_TRUE(torch::allclose(w, torch::softmax((J + weight * tail) / lambda + hybrid.log_density(), 1), 1e-9,
+                              1e-12));
+  EXPECT_FALSE(torch::allclose(w, torch::softmax(J / lambda + hybrid.log_density(), 1), 1e-6, 1e-9));
+
+  // A weight needs a value function, and must not be negative; a value of the wrong size is refused.
+  EXPECT_THROW(StochasticHybrid(std::make_shared<PolicySampler>(md.policy), md.dynamics, md.reward, o),
+               Error);
+  StochasticHybridOptions negative = o;
+  negative.terminal_value_weight = -1;
+  EXPECT_THROW(StochasticHybrid(std::make_shared<PolicySampler>(md.policy), md.dynamics, md.reward, negative,
+                                md.policy, "stochastic_hybrid", value),
+               Error);
+  StochasticHybrid wrong(std::make_shared<PolicySampler>(md.policy), md.dynamics, md.reward, o, md.policy,
+                         "stochastic_hybrid",
+                         [](const at::Tensor&) { return torch::zeros({3}, torch::kFloat64); });
+  EXPECT_THROW(wrong.act(s0), Error);
+}
+
 TEST(DynamicsModel, DomainIsTheRangeOfTheStatesItWasGiven) {
   DynamicsModel model(DynamicsModelOptions{2, 1, 8});
   EXPECT_FALSE(model->has_domain());

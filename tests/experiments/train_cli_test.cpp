@@ -103,6 +103,16 @@ TEST(TrainCli, RejectsBadInputWithClearMessages) {
           precedence);
   EXPECT_EQ(r.code, 0) << r.output;
   EXPECT_NE(read_file(precedence + "/config.yaml").find("env: \"pendulum\""), std::string::npos);
+  // The planner's terminal value is SAC's critic: hybrid-stochastic runs with it; a negative weight is
+  // refused.
+  r = run(kTrain + kSmall +
+          " --method hybrid-stochastic --steps 5 eval.every=0 planner.terminal_value=0.5 --out " +
+          fresh_dir("terminal_value"));
+  EXPECT_EQ(r.code, 0) << r.output;
+  r = run(kTrain + kSmall + " --method hybrid-stochastic --steps 5 planner.terminal_value=-1 --out " +
+          fresh_dir("negative_terminal_value"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("'planner.terminal_value'"), std::string::npos) << r.output;
   // Replay memory that cannot fit is refused before anything is allocated.
   // (ant: 100M transitions of 74 floats, 29.6 GB; the check is skipped where that much memory is free).
   const Result mem = run("awk '/MemAvailable/ {print $2}' /proc/meminfo");

@@ -5,6 +5,7 @@
 // NN-MPPI baseline. All K samples move through each step as one batch of tensor operations.
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -37,7 +38,16 @@ struct StochasticHybridOptions {
   // (on the cart-pole, a cart that the model lets run through the end of its rail). No effect until the
   // model has a domain.
   bool clamp_to_domain = false;
+  // If > 0, every sample's return also counts this weight times a value estimate of its last predicted
+  // state s_H (the controller's TerminalValue), J_t^k = sum_{tau >= t} r_tau^k + weight V(s_H^k). 0 (the
+  // default) is the paper's rule, which values nothing beyond the horizon. Why: a few agent steps of
+  // lookahead do not see the consequences that decide a task later (on the cart-pole, a cart driven to
+  // the end of its rail while the pole falls towards it); SAC's critic, trained on the same data, does.
+  double terminal_value_weight = 0;
 };
+
+// A value estimate of states [K, n]: returns [K] (or [K, 1]). Called in inference mode.
+using TerminalValue = std::function<at::Tensor(const at::Tensor& states)>;
 
 // The planner's weights [H, K] from scaled returns J / lambda [H, K] and, if given, the samples'
 // log-densities [H, K]: per row w ~ exp(beta J / lambda + log p) + floor (after subtracting the row's max),
@@ -86,7 +96,7 @@ class StochasticHybrid : public Controller {
  public:
   StochasticHybrid(std::shared_ptr<ActionSampler> sampler, DynamicsModel dynamics, RewardModel reward,
                    const StochasticHybridOptions& options, GaussianPolicy fallback_policy = nullptr,
-                   std::string name = "stochastic_hybrid");
+                   std::string name = "stochastic_hybrid", TerminalValue terminal_value = nullptr);
 
   std::string name() const override { return name_; }
   void reset() override;
@@ -97,6 +107,8 @@ class StochasticHybrid : public Controller {
   const at::Tensor& weights() const { return weights_; }
   const at::Tensor& samples() const { return samples_; }
   const at::Tensor& log_density() const { return log_density_; }
+  // The last call's terminal values V(s_H) [K] (undefined without terminal_value_weight).
+  const at::Tensor& terminal_values() const { return terminal_values_; }
 
  protected:
   at::Tensor compute_action(const at::Tensor& state) override;
@@ -107,7 +119,8 @@ class StochasticHybrid : public Controller {
   ModelForward models_;
   StochasticHybridOptions options_;
   std::string name_;
-  at::Tensor plan_, weights_, samples_, log_density_, rewards_;
+  TerminalValue terminal_value_;
+  at::Tensor plan_, weights_, samples_, log_density_, rewards_, terminal_values_;
   at::Tensor states_a_, states_b_;  // rollout state buffers [K, n] (sample-major)
   std::vector<at::Tensor> plan_rows_, sample_rows_, reward_rows_;  // per-step views
 };
