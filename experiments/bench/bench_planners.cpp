@@ -3,11 +3,20 @@
 //
 // Sizes: (n=5, m=1, K=20, H=5) is the cart-pole swing-up (sin networks); (n=26, m=6, K=60, H=10) is the
 // half-cheetah (ReLU networks). Dynamics hidden 200, reward 200 x 200, policy 128, critics 2 x 256.
+// RobotTaskPlanner builds a robot task's acting controller exactly as hlt_train does, from the shipped
+// configs: added to hlt_camera_loop's render and perceive times it gives a camera-observed step's cost.
 #include <benchmark/benchmark.h>
 #include <torch/torch.h>
 
+#include <filesystem>
+
+#include <fmt/format.h>
+
+#include "agents/learner.h"
 #include "agents/model_learner.h"
 #include "agents/sac.h"
+#include "agents/train_config.h"
+#include "envs/registry.h"
 #include "hlt/control/action_sampler.h"
 #include "hlt/control/deterministic_hybrid.h"
 #include "hlt/control/stochastic_hybrid.h"
@@ -149,6 +158,41 @@ BENCHMARK(MPPIBench)->Name("MPPI")->Apply(planner_args);
 BENCHMARK(MPPIFloor)->Name("MPPIFloor")->Apply(planner_args);
 BENCHMARK(DeterministicHybridBench)->Name("DeterministicHybrid")->Apply(planner_args);
 BENCHMARK(DeterministicHybridFloor)->Name("DeterministicHybridFloor")->Apply(planner_args);
+
+// One planning call of `method`'s acting controller on `env`, with the settings hlt_train resolves for them
+// (experiments/configs/<env>.yaml and the method's overlay) and freshly initialised networks, from a reset
+// state: block pushing's hybrid-stochastic (H 10, K 10 + 20 plan samples, policy 128 x 128) and block
+// stacking's hybrid-imitation (H 40, K 40, policy 32 x 24).
+void RobotTaskPlanner(benchmark::State& st, const std::string& env_name, const std::string& method_name) {
+  set_torch_threads(1);
+  torch::manual_seed(0);
+  namespace fs = std::filesystem;
+  Config config = make_train_config();
+  config.load_file((fs::path(HLT_CONFIG_DIR) / (env_name + ".yaml")).string());
+  const fs::path overlay = fs::path(HLT_CONFIG_DIR) / "methods" / (method_name + ".yaml");
+  if (fs::exists(overlay)) config.load_file(overlay.string());
+  std::unique_ptr<Env> env = make_env(env_name);
+  const MethodSpec& method = find_method(method_name);
+  LearnedModels models;
+  LearnerContext context{config, env->observation_dim(), env->action_dim(), 0, models};
+  std::vector<std::unique_ptr<Learner>> learners;
+  for (const LearnerUse& use : method.learners)
+    learners.push_back(make_learner(use.learner, context));
+  std::unique_ptr<Controller> controller = make_controller(method.controller, models, config, false);
+  const Eigen::VectorXd s0 = env->reset(0);
+  const at::Tensor state =
+      torch::from_blob(const_cast<double*>(s0.data()), {s0.size()}, torch::kFloat64).to(torch::kFloat32);
+  for (auto _ : st)
+    benchmark::DoNotOptimize(controller->act(state));
+  st.SetLabel(fmt::format(
+      "H {} K {} (+{} plan samples)", config.get_int("planner.horizon"), config.get_int("planner.samples"),
+      method.controller == "stochastic_hybrid" ? config.get_int("planner.plan_samples") : 0));
+}
+
+BENCHMARK_CAPTURE(RobotTaskPlanner, block_push, std::string("block_push"), std::string("hybrid-stochastic"))
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(RobotTaskPlanner, block_stack, std::string("block_stack"), std::string("hybrid-imitation"))
+    ->Unit(benchmark::kMillisecond);
 
 // One SAC update at batch 128 (critics 2 x 256, policy 128) and one joint model update (5 per agent step).
 void SacUpdate(benchmark::State& st) {
