@@ -1,5 +1,7 @@
 #include "agents/train_config.h"
 
+#include <filesystem>
+
 #include "agents/methods.h"
 #include "envs/registry.h"
 
@@ -150,6 +152,22 @@ Config make_train_config() {
           "agent steps (environment interactions)",
           0.0, 1.0);
   return c;
+}
+
+namespace {
+
+void load_if_present(Config& config, const std::filesystem::path& file) {
+  if (std::filesystem::exists(file)) config.load_file(file.string());
+}
+
+}  // namespace
+
+void load_env_defaults(Config& config, const std::string& config_dir, const std::string& env) {
+  load_if_present(config, std::filesystem::path(config_dir) / (env + ".yaml"));
+}
+
+void load_method_overlay(Config& config, const std::string& config_dir, const std::string& method) {
+  load_if_present(config, std::filesystem::path(config_dir) / "methods" / (method + ".yaml"));
 }
 
 }  // namespace hlt

@@ -2,10 +2,18 @@
 // Per-environment defaults (the paper's hyper-parameters) live in experiments/configs/<env>.yaml.
 #pragma once
 
+#include <string>
+
 #include "hlt/util/config.h"
 
 namespace hlt {
 
 Config make_train_config();
+
+// The shipped per-environment defaults (<config_dir>/<env>.yaml) and per-method overlay
+// (<config_dir>/methods/<method>.yaml), each loaded into `config` if the file exists. hlt_train applies them
+// in this order, after the declared defaults and before --config and the flags.
+void load_env_defaults(Config& config, const std::string& config_dir, const std::string& env);
+void load_method_overlay(Config& config, const std::string& config_dir, const std::string& method);
 
 }  // namespace hlt

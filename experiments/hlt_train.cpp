@@ -130,15 +130,13 @@ int run(int argc, char** argv) {
   if (env_name.empty() && !config_file.empty()) env_name = key_in_file(config_file, "env").value_or("");
   if (env_name.empty()) env_name = config.get_string("env");
   config.set("env", env_name, "--env");  // validates the name before its file is looked up
-  const fs::path env_defaults = fs::path(HLT_CONFIG_DIR) / (env_name + ".yaml");
-  if (fs::exists(env_defaults)) config.load_file(env_defaults.string());
+  load_env_defaults(config, HLT_CONFIG_DIR, env_name);
   std::string method_name = method;
   if (method_name.empty() && !config_file.empty())
     method_name = key_in_file(config_file, "method").value_or("");
   if (method_name.empty()) method_name = config.get_string("method");
   config.set("method", method_name, "--method");  // validates the name before its overlay is looked up
-  const fs::path method_defaults = fs::path(HLT_CONFIG_DIR) / "methods" / (method_name + ".yaml");
-  if (fs::exists(method_defaults)) config.load_file(method_defaults.string());
+  load_method_overlay(config, HLT_CONFIG_DIR, method_name);
   if (!config_file.empty()) config.load_file(config_file);
   // The flags come after the file (the documented order), --env included.
   if (!env.empty()) config.set("env", env, "--env");

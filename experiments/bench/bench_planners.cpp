@@ -8,8 +8,6 @@
 #include <benchmark/benchmark.h>
 #include <torch/torch.h>
 
-#include <filesystem>
-
 #include <fmt/format.h>
 
 #include "agents/learner.h"
@@ -166,11 +164,9 @@ BENCHMARK(DeterministicHybridFloor)->Name("DeterministicHybridFloor")->Apply(pla
 void RobotTaskPlanner(benchmark::State& st, const std::string& env_name, const std::string& method_name) {
   set_torch_threads(1);
   torch::manual_seed(0);
-  namespace fs = std::filesystem;
   Config config = make_train_config();
-  config.load_file((fs::path(HLT_CONFIG_DIR) / (env_name + ".yaml")).string());
-  const fs::path overlay = fs::path(HLT_CONFIG_DIR) / "methods" / (method_name + ".yaml");
-  if (fs::exists(overlay)) config.load_file(overlay.string());
+  load_env_defaults(config, HLT_CONFIG_DIR, env_name);
+  load_method_overlay(config, HLT_CONFIG_DIR, method_name);
   std::unique_ptr<Env> env = make_env(env_name);
   const MethodSpec& method = find_method(method_name);
   LearnedModels models;
