@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 
 #include "hlt/control/action_sampler.h"
 #include "hlt/control/deterministic_hybrid.h"
@@ -40,6 +41,23 @@ Models random_models(int n, int m, uint64_t seed, double policy_log_std = 0.0) {
   last_std->weight.zero_();
   last_std->bias.fill_(policy_log_std);
   return md;
+}
+
+// The models' rollout of the planner's samples V [H, K, m] from s0 [n]: the predicted reward-to-go
+// J_t^k [H, K] and the last predicted states s_H [K, n]. `after_step` (if given) maps each predicted state
+// before the next step, as the planner's options may.
+std::pair<torch::Tensor, torch::Tensor> reward_to_go(
+    Models md, const torch::Tensor& s0, const torch::Tensor& V,
+    const std::function<torch::Tensor(const torch::Tensor&)>& after_step = nullptr) {
+  torch::NoGradGuard g;
+  auto s = s0.unsqueeze(0).expand({V.size(1), s0.size(0)});
+  std::vector<torch::Tensor> r;
+  for (int64_t t = 0; t < V.size(0); ++t) {
+    r.push_back(md.reward->forward(s, V[t]).squeeze(-1));
+    s = md.dynamics->forward(s, V[t]);
+    if (after_step) s = after_step(s);
+  }
+  return {torch::stack(r).flip(0).cumsum(0).flip(0), s};
 }
 
 // Predicted reward-to-go from step t with s_t = s and closed-loop actions mu(s) afterwards; optionally the
@@ -432,13 +450,7 @@ TEST(StochasticHybrid, WeightsAreFiniteNormalisedAndFollowTheFormula) {
   torch::NoGradGuard g;
   {
     auto V = hybrid.samples();  // [H, K, m]
-    auto s = s0.unsqueeze(0).expand({30, 3});
-    std::vector<torch::Tensor> r;
-    for (int t = 0; t < 6; ++t) {
-      r.push_back(md.reward->forward(s, V[t]).squeeze(-1));
-      s = md.dynamics->forward(s, V[t]);
-    }
-    auto J = torch::stack(r).flip(0).cumsum(0).flip(0);
+    auto J = reward_to_go(md, s0, V).first;
     auto expected = torch::softmax(J / lambda + hybrid.log_density(), 1);
     EXPECT_TRUE(torch::allclose(w, expected, 1e-9, 1e-12));
     // The log-density is the policy's, with the tanh correction.
@@ -471,23 +483,17 @@ TEST(StochasticHybrid, ClampToDomainKeepsThePredictedStatesInTheModelsDomain) {
   const auto w = hybrid.weights().clone();
   torch::NoGradGuard g;
   auto weights_along = [&](bool clamp) {
-    auto V = hybrid.samples();  // [H, K, m]
-    auto s = s0.unsqueeze(0).expand({30, 3});
-    std::vector<torch::Tensor> r;
     int clamped = 0;
-    for (int t = 0; t < 6; ++t) {
-      r.push_back(md.reward->forward(s, V[t]).squeeze(-1));
-      s = md.dynamics->forward(s, V[t]);
-      if (clamp) {
-        const auto c = torch::max(torch::min(s, high), low);
-        clamped += (c != s).sum().item<int>();
-        s = c;
-      }
-    }
+    auto clamp_step = [&](const torch::Tensor& s) {
+      const auto c = torch::max(torch::min(s, high), low);
+      clamped += (c != s).sum().item<int>();
+      return c;
+    };
+    auto J = clamp ? reward_to_go(md, s0, hybrid.samples(), clamp_step).first
+                   : reward_to_go(md, s0, hybrid.samples()).first;
     if (clamp) {
       EXPECT_GT(clamped, 30);  // the domain binds on many samples and steps
     }
-    auto J = torch::stack(r).flip(0).cumsum(0).flip(0);
     return torch::softmax(J / lambda + hybrid.log_density(), 1);
   };
   EXPECT_TRUE(torch::allclose(w, weights_along(true), 1e-9, 1e-12));
@@ -512,19 +518,12 @@ TEST(StochasticHybrid, TerminalValueAddsTheLastStatesValueToEveryStepsReturn) {
                           "stochastic_hybrid", value);
   const auto s0 = torch::randn({3}, torch::kFloat64);
   hybrid.act(s0);
-  EXPECT_EQ(calls, 1);  // one batched call per step for all K samples
+  EXPECT_EQ(calls, 1);  // one batched call per planning call, for all K samples
   const auto w = hybrid.weights().clone();
   torch::NoGradGuard g;
-  auto V = hybrid.samples();  // [H, K, m]
-  auto s = s0.unsqueeze(0).expand({25, 3});
-  std::vector<torch::Tensor> r;
-  for (int t = 0; t < 4; ++t) {
-    r.push_back(md.reward->forward(s, V[t]).squeeze(-1));
-    s = md.dynamics->forward(s, V[t]);
-  }
-  const auto tail = torch::tanh(s.matmul(c));
+  const auto [J, s_H] = reward_to_go(md, s0, hybrid.samples());
+  const auto tail = torch::tanh(s_H.matmul(c));
   EXPECT_TRUE(torch::allclose(hybrid.terminal_values(), tail, 1e-12, 1e-12));
-  const auto J = torch::stack(r).flip(0).cumsum(0).flip(0);
   EXPECT_TRUE(torch::allclose(w, torch::softmax((J + weight * tail) / lambda + hybrid.log_density(), 1), 1e-9,
                               1e-12));
   EXPECT_FALSE(torch::allclose(w, torch::softmax(J / lambda + hybrid.log_density(), 1), 1e-6, 1e-9));
@@ -586,13 +585,7 @@ TEST(StochasticHybrid, GaussianDensityIsThePolicysGaussianAtThePreTanhSample) {
   auto expected = (-0.5 * ((u - mean) / log_std.exp()).square() - log_std - 0.5 * std::log(2 * M_PI)).sum(-1);
   EXPECT_TRUE(torch::allclose(gaussian.log_density()[0], expected, 1e-6, 1e-6));
   // The weights follow exp(J / lambda) p(v) with that density.
-  auto s = s0.unsqueeze(0).expand({40, 3});
-  std::vector<torch::Tensor> r;
-  for (int t = 0; t < 3; ++t) {
-    r.push_back(md.reward->forward(s, V[t]).squeeze(-1));
-    s = md.dynamics->forward(s, V[t]);
-  }
-  auto J = torch::stack(r).flip(0).cumsum(0).flip(0);
+  auto J = reward_to_go(md, s0, V).first;
   EXPECT_TRUE(torch::allclose(gaussian.weights(), torch::softmax(J / lambda + gaussian.log_density(), 1),
                               1e-9, 1e-12));
   // Diagnostics: the effective sample size is 1 / sum w^2 of step 0, the saturated weight in [0, 1].
