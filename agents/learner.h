@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "agents/methods.h"
+#include "envs/env.h"
 #include "hlt/data/replay_buffer.h"
 #include "hlt/util/config.h"
 
@@ -47,6 +48,8 @@ struct LearnerContext {
   int64_t state_dim = 0, action_dim = 0;
   uint64_t seed = 0;
   LearnedModels& models;
+  // The environment's declared observation ranges, if any (policy.normalize_inputs needs them).
+  std::optional<ObservationScale> observation_scale = std::nullopt;
 };
 
 // Builds the learner registered as `name`; throws hlt::Error listing the known learners.

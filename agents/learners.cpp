@@ -52,6 +52,14 @@ GaussianPolicy& config_policy(LearnerContext& context) {
     po.action_dim = context.action_dim;
     po.hidden = c.get_int_list("policy.hidden");
     po.mean_activation = parse_activation(c.get_string("policy.activation"));
+    if (c.get_bool("policy.normalize_inputs")) {
+      check(context.observation_scale.has_value(),
+            "policy.normalize_inputs=true: environment '{}' declares no observation ranges to normalise by",
+            c.get_string("env"));
+      const ObservationScale& s = *context.observation_scale;
+      po.input_offset.assign(s.offset.data(), s.offset.data() + s.offset.size());
+      po.input_scale.assign(s.scale.data(), s.scale.data() + s.scale.size());
+    }
     context.models.policy = GaussianPolicy(po);
   }
   return context.models.policy;

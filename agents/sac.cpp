@@ -180,8 +180,11 @@ SacLosses Sac::update(const Batch& b) {
   //   dL/dmu = dL/du,  dL/dlog_sigma = dL/du sigma eps - alpha / B  (zero where the clamp is active);
   // eps's own terms cancel, since u - mu = sigma eps does not depend on mu or sigma once eps is drawn.
   const auto& opt = policy_->options();
-  const torch::Tensor mean = mean_pass_.forward(b.states);
-  const torch::Tensor raw_log_std = log_std_pass_.forward(b.states);
+  // The heads see the states as the policy normalises them (the actor's gradient is taken with respect to
+  // the parameters and the action, never the state, so normalising first is exact).
+  const torch::Tensor policy_input = policy_->normalize(b.states);
+  const torch::Tensor mean = mean_pass_.forward(policy_input);
+  const torch::Tensor raw_log_std = log_std_pass_.forward(policy_input);
   const torch::Tensor log_std = raw_log_std.clamp(opt.log_std_min, opt.log_std_max);
   const torch::Tensor std = log_std.exp();
   const torch::Tensor eps = at::randn(mean.sizes(), generator_, mean.options());

@@ -50,6 +50,12 @@ SavedPolicy load_saved_policy(const std::string& path) {
         "checkpoint {}: the policy's layers are missing", path);
   o.state_dim = w_in.size(1);
   o.action_dim = w_out.size(0);
+  if (r.has("policy_input_scale")) {
+    const at::Tensor offset = r.tensor("policy_input_offset").to(torch::kFloat64).contiguous();
+    const at::Tensor scale = r.tensor("policy_input_scale").to(torch::kFloat64).contiguous();
+    o.input_offset.assign(offset.data_ptr<double>(), offset.data_ptr<double>() + offset.numel());
+    o.input_scale.assign(scale.data_ptr<double>(), scale.data_ptr<double>() + scale.numel());
+  }
   GaussianPolicy policy(o);
   r.load_module("policy", *policy);
   policy->eval();

@@ -84,6 +84,9 @@ Config make_train_config() {
                   1000.0)
       .add_int_list("policy.hidden", {128}, "policy hidden layer widths (both heads)", 1, 100000)
       .add_string("policy.activation", "sin", "policy mean head hidden activation", {"sin", "relu"})
+      .add_bool("policy.normalize_inputs", false,
+                "the policy sees (s - offset) / scale with the environment's declared observation ranges "
+                "(for observations mixing metres and newtons; the robot tasks declare them)")
       .add_double("sac.gamma", 0.99, "SAC discount", 0.0, 1.0)
       .add_double("sac.tau", 0.005, "SAC target critic Polyak factor", 0.0, 1.0)
       .add_double("sac.lr", 3e-4,

@@ -151,7 +151,8 @@ struct Trainer::Impl {
     // Each learner adds the networks it trains to `models`, in the method's order (which fixes the order
     // in which they draw their initial weights).
     for (size_t i = 0; i < method->learners.size(); ++i) {
-      LearnerContext context{config, n, m, derive_seed(seed, kLearnerNoise + i), models};
+      LearnerContext context{
+          config, n, m, derive_seed(seed, kLearnerNoise + i), models, env->observation_scale()};
       learners.push_back({make_learner(method->learners[i].learner, context),
                           nullptr,
                           config.get_int(method->learners[i].updates_key),
@@ -599,6 +600,11 @@ struct Trainer::Impl {
       // Enough to rebuild the policy without the run's config (hlt_rollout --policy checkpoint:PATH).
       w.add_tensor("policy_hidden", torch::tensor(config.get_int_list("policy.hidden"), torch::kInt64));
       w.add_string("policy_activation", config.get_string("policy.activation"));
+      const GaussianPolicyOptions& po = models.policy->options();
+      if (!po.input_scale.empty()) {
+        w.add_tensor("policy_input_offset", torch::tensor(po.input_offset, torch::kFloat64));
+        w.add_tensor("policy_input_scale", torch::tensor(po.input_scale, torch::kFloat64));
+      }
       w.add_module("policy", *models.policy);
     }
     if (models.dynamics) {

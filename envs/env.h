@@ -27,6 +27,13 @@ struct StepResult {
   bool done() const { return terminated || truncated; }
 };
 
+// Where an environment's observations typically lie: component i around offset[i], spread over about
+// scale[i] (> 0). Learners that normalise their inputs use (o - offset) / scale; the numbers are the task's
+// physical ranges (its workspace, its forces), fixed, so a normalised network means the same on any data.
+struct ObservationScale {
+  Eigen::VectorXd offset, scale;
+};
+
 // A snapshot of an environment: simulator state, random generator and step counter.
 struct EnvState {
   std::vector<double> sim;
@@ -66,6 +73,9 @@ class Env {
   // Tasks with a success criterion (the robot tasks) say whether it holds in the current state; the
   // episode loop asks at an episode's end. Others have none (nullopt).
   virtual std::optional<bool> episode_success() const { return std::nullopt; }
+  // Tasks whose observation components have very different units (metres next to newtons) declare their
+  // typical ranges (policy.normalize_inputs uses them); others none.
+  virtual std::optional<ObservationScale> observation_scale() const { return std::nullopt; }
 
  protected:
   // Draws an initial state from `rng` and returns the first observation.
@@ -98,6 +108,7 @@ class FrameSkip : public Env {
   double dt() const override { return inner_->dt() * k_; }
   cv::Mat render(int width, int height) const override { return inner_->render(width, height); }
   std::optional<bool> episode_success() const override { return inner_->episode_success(); }
+  std::optional<ObservationScale> observation_scale() const override { return inner_->observation_scale(); }
   int frame_skip() const { return k_; }
   // Simulator steps taken in the current episode.
   int inner_elapsed_steps() const { return inner_->elapsed_steps(); }

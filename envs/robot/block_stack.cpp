@@ -52,7 +52,7 @@ BlockStack::BlockStack() : scene_(std::make_unique<Tabletop>(stack_settings())) 
   const Eigen::Vector3d finger_axis =
       arm.robot().body_pose(m.fingers[0]).translation() - arm.robot().body_pose(m.fingers[1]).translation();
   check(std::abs(finger_axis.normalized().y()) > 0.999, "block_stack: the fingers do not close along y");
-  place({kBlockX, kBlockY, 0.0}, {0.55, 0.1, 0.0});
+  place({kBlockX, kBlockY, 0.0}, {kBaseX, kBaseY, 0.0});
 }
 
 void BlockStack::place(const Eigen::Vector3d& block, const Eigen::Vector3d& base) {
@@ -64,16 +64,32 @@ void BlockStack::place(const Eigen::Vector3d& block, const Eigen::Vector3d& base
 Eigen::VectorXd BlockStack::reset_impl(std::mt19937_64& rng) {
   std::uniform_real_distribution<double> jitter(-kJitter, kJitter),
       yaw_jitter(-kBlockYawJitter, kBlockYawJitter);
-  std::uniform_real_distribution<double> bx(kBaseXMin, kBaseXMax), by(kBaseYMin, kBaseYMax);
   // A cube's yaw matters modulo a quarter turn.
   std::uniform_real_distribution<double> byaw(-0.25 * kPi, 0.25 * kPi);
-  Eigen::Vector3d block(kBlockX + jitter(rng), kBlockY + jitter(rng), yaw_jitter(rng));
-  Eigen::Vector3d base;
-  do {
-    base << bx(rng), by(rng), byaw(rng);
-  } while (std::hypot(base.x() - kBlockX, base.y() - kBlockY) < kMinSeparation);
+  const Eigen::Vector3d block(kBlockX + jitter(rng), kBlockY + jitter(rng), yaw_jitter(rng));
+  const Eigen::Vector3d base(kBaseX + jitter(rng), kBaseY + jitter(rng), byaw(rng));
   place(block, base);
   return observation();
+}
+
+std::optional<ObservationScale> BlockStack::observation_scale() const {
+  ObservationScale s;
+  s.offset = Eigen::VectorXd::Zero(kObsDim);
+  s.scale = Eigen::VectorXd::Ones(kObsDim);
+  // Positions: x and z over the task's few centimetres, y over the 20 cm between the blocks' spots.
+  const Eigen::Vector3d centre(0.5 * (kBlockX + kBaseX), 0.5 * (kBlockY + kBaseY), 0.0);
+  const Eigen::Vector3d spread(0.05, 0.1, 0.03);
+  s.offset.segment<3>(kEe) = centre + Eigen::Vector3d(0, 0, 0.07);
+  s.offset.segment<3>(kBlock) = centre + Eigen::Vector3d(0, 0, 0.05);
+  s.offset.segment<3>(kBase) = Eigen::Vector3d(kBaseX, kBaseY, kBlockHalf);
+  s.scale.segment<3>(kEe) = spread;
+  s.scale.segment<3>(kBlock) = spread;
+  s.scale.segment<3>(kBase) = Eigen::Vector3d(0.05, 0.05, 0.01);
+  s.offset[kGripper] = 0.9;
+  s.scale[kGripper] = 0.1;
+  s.scale.segment<3>(kForce) = Eigen::Vector3d(0.3, 0.3, 0.7);
+  s.scale.segment<3>(kTorque).setConstant(0.01);
+  return s;
 }
 
 Eigen::Vector3d BlockStack::external_force() const {
@@ -127,9 +143,12 @@ StepResult BlockStack::step_impl(const Eigen::VectorXd& action) {
   const Eigen::Vector4d a = action.cwiseMax(-1.0).cwiseMin(1.0);
   Vector6d twist = Vector6d::Zero();
   twist.head<3>() = kSpeed * a.head<3>();
-  // Gripper command > 0 closes the fingers (their motors push with up to 70 N), < 0 opens them, at a speed
-  // proportional to the command.
-  scene_->step(twist, -a[3] * scene_->arm().model().finger_max_speed);
+  // A binary gripper, as the real Panda's (grasp or open, no speed in between) and as the paper's state has
+  // it (open/closed): a command > 0 closes the fingers at full speed (their motors push with up to 70 N),
+  // <= 0 opens them. A learned policy then has to get only the command's sign right; with a speed
+  // proportional to the command, its averaged mean (near 0 around the grasp) left the fingers half shut.
+  const double finger_speed = scene_->arm().model().finger_max_speed;
+  scene_->step(twist, a[3] > 0 ? -finger_speed : finger_speed);
   StepResult r;
   if (!scene_->state_is_finite()) {
     r.terminated = true;

@@ -25,9 +25,12 @@ class BlockStack : public Env {
   // The block starts within kJitter (per axis) of (kBlockX, kBlockY), the gripper kStartHeight over that
   // spot.
   static constexpr double kBlockX = 0.5, kBlockY = -0.1, kJitter = 0.01, kStartHeight = 0.12;
-  // The base's centre is drawn uniformly from this rectangle, at least kMinSeparation from the block's spot.
-  static constexpr double kBaseXMin = 0.4, kBaseXMax = 0.65, kBaseYMin = -0.15, kBaseYMax = 0.25;
-  static constexpr double kMinSeparation = 0.12;
+  // The base starts within kJitter (per axis) of (kBaseX, kBaseY), its yaw anywhere. A fixed spot, as in the
+  // paper: its state has no target position (the stacking point is a constant of the task) and the arm
+  // starts at the same spot every time. (hlt's first version drew the base anywhere in a 25 x 40 cm
+  // rectangle: from 1-10 demonstrations a policy then has to generalise over the target's position, which
+  // the paper's task does not ask.)
+  static constexpr double kBaseX = 0.55, kBaseY = 0.1;
   // Success tolerances: the block's centre over the base's, its height over the base's, and the fingers
   // clear of its faces.
   static constexpr double kPlaceXY = 0.015, kPlaceZ = 0.005, kReleasedOpening = kBlockHalf + 0.004;
@@ -64,6 +67,9 @@ class BlockStack : public Env {
   // block size over it within kPlaceZ, slower than 1 cm/s) and the gripper is open clear of it.
   bool success() const;
   std::optional<bool> episode_success() const override { return success(); }
+  // The workspace around the two blocks' spots (positions over a few cm), the opening, the wrench (a held
+  // block's weight, contact forces of a few N).
+  std::optional<ObservationScale> observation_scale() const override;
 
   Eigen::VectorXd observation() const;
   const Tabletop& scene() const { return *scene_; }

@@ -68,6 +68,7 @@ class CameraObserved : public Env {
   cv::Mat render(int width = 480, int height = 360) const override { return task_->render(width, height); }
   // Success is judged on the simulator's truth, not on the camera's estimate.
   std::optional<bool> episode_success() const override { return task_->episode_success(); }
+  std::optional<ObservationScale> observation_scale() const override { return task_->observation_scale(); }
 
   // The state-observed task underneath (its observation is the simulator's truth).
   const Env& task() const { return *task_; }

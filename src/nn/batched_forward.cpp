@@ -109,7 +109,9 @@ void PolicyForward::prepare(int64_t batch) {
 void PolicyForward::forward(const at::Tensor& states) {
   torch::NoGradGuard no_grad;  // out= products do not record gradients
   const auto& o = policy_->options();
-  const at::Tensor* x = &states;
+  // Normalised inputs (rare: the robot tasks) cost one elementwise pass over the batch.
+  const at::Tensor normalized = policy_->normalizes_inputs() ? policy_->normalize(states) : at::Tensor();
+  const at::Tensor* x = normalized.defined() ? &normalized : &states;
   const size_t layers = buffers_.size();
   for (size_t l = 0; l < layers; ++l) {
     at::mm_out(buffers_[l], *x, weights_[l]);

@@ -43,25 +43,63 @@ GaussianPolicyImpl::GaussianPolicyImpl(const GaussianPolicyOptions& o) : options
   check(!o.hidden.empty(), "GaussianPolicy needs at least one hidden layer");
   for (int64_t h : o.hidden)
     check(h > 0, "GaussianPolicy hidden sizes must be positive");
+  check(o.input_offset.size() == o.input_scale.size() &&
+            (o.input_scale.empty() || static_cast<int64_t>(o.input_scale.size()) == o.state_dim),
+        "GaussianPolicy input normalisation needs {} offsets and scales, got {} and {}", o.state_dim,
+        o.input_offset.size(), o.input_scale.size());
+  if (!o.input_scale.empty()) {
+    for (size_t i = 0; i < o.input_scale.size(); ++i)
+      check(o.input_scale[i] > 0 && std::isfinite(o.input_scale[i]) && std::isfinite(o.input_offset[i]),
+            "GaussianPolicy input normalisation: component {} has offset {} and scale {} (scales must be "
+            "finite and > 0)",
+            i, o.input_offset[i], o.input_scale[i]);
+    input_offset_ = torch::tensor(o.input_offset, torch::kFloat64);
+    input_inv_scale_ = 1.0 / torch::tensor(o.input_scale, torch::kFloat64);
+  }
   mean_layers = register_module("mean", make_mlp(o.state_dim, o.hidden, o.action_dim, o.init_scale));
   log_std_layers = register_module("log_std", make_mlp(o.state_dim, o.hidden, o.action_dim, o.init_scale));
 }
 
+torch::Tensor GaussianPolicyImpl::normalize(const torch::Tensor& state) const {
+  if (!normalizes_inputs()) return state;
+  const auto opts = state.options().requires_grad(false);
+  return (state - input_offset_.to(opts)) * input_inv_scale_.to(opts);
+}
+
 std::pair<torch::Tensor, torch::Tensor> GaussianPolicyImpl::forward(const torch::Tensor& state) {
-  torch::Tensor mean = run_mlp(mean_layers, state, options_.mean_activation);
+  const torch::Tensor x = normalize(state);
+  torch::Tensor mean = run_mlp(mean_layers, x, options_.mean_activation);
   torch::Tensor log_std =
-      run_mlp(log_std_layers, state, Activation::kRelu).clamp(options_.log_std_min, options_.log_std_max);
+      run_mlp(log_std_layers, x, Activation::kRelu).clamp(options_.log_std_min, options_.log_std_max);
   return {mean, log_std};
 }
 
 torch::Tensor GaussianPolicyImpl::mean_action(const torch::Tensor& state) {
-  return torch::tanh(run_mlp(mean_layers, state, options_.mean_activation));
+  return torch::tanh(run_mlp(mean_layers, normalize(state), options_.mean_activation));
 }
 
 DenseChain GaussianPolicyImpl::mean_chain() const {
   DenseChain chain{{}, options_.mean_activation, /*tanh_output=*/true};
   for (const auto& layer : *mean_layers)
     chain.layers.push_back(torch::nn::Linear(std::dynamic_pointer_cast<torch::nn::LinearImpl>(layer)));
+  if (normalizes_inputs()) {
+    // Folded into the first layer: W ((s - c) / d) + b = (W / d) s + (b - W (c / d)). A new layer (the
+    // chain holds its layers): gradients reach the state, not the policy's own first layer.
+    const auto& first = chain.layers.front();
+    torch::NoGradGuard no_grad;
+    const auto opts = first->weight.options().requires_grad(false);
+    const torch::Tensor inv = input_inv_scale_.to(opts);
+    // A Linear draws its initial weights from the default generator: put its state back, so that asking
+    // for the chain leaves every later random draw as it was.
+    at::Generator generator = at::detail::getDefaultCPUGenerator();
+    const at::Tensor generator_state = generator.get_state();
+    torch::nn::Linear folded(torch::nn::LinearOptions(first->weight.size(1), first->weight.size(0)));
+    generator.set_state(generator_state);
+    folded->to(first->weight.scalar_type());
+    folded->weight.copy_(first->weight * inv);
+    folded->bias.copy_(first->bias - torch::mv(first->weight, input_offset_.to(opts) * inv));
+    chain.layers.front() = folded;
+  }
   return chain;
 }
 

@@ -57,7 +57,9 @@ double relative_difference(const torch::Tensor& a, const torch::Tensor& b) {
 
 // The update's hand-written gradients against autograd on the losses they differentiate: the critics'
 // from the same initial networks and noise, the policy's after the same critic step.
-TEST(Sac, HandWrittenGradientsMatchAutograd) {
+// The hand-written update against autograd through the modules; with `normalized` the policy normalises its
+// inputs (the hand-written actor pass then runs on the normalised states).
+void expect_hand_written_gradients_match_autograd(bool normalized) {
   const int n = 3, m = 2, B = 32;
   SacOptions o;
   o.q_hidden = {20, 14};
@@ -65,7 +67,12 @@ TEST(Sac, HandWrittenGradientsMatchAutograd) {
   o.initial_alpha = 0.7;
   auto make = [&] {
     torch::manual_seed(11);
-    GaussianPolicy p(GaussianPolicyOptions{n, m, {16, 12}, Activation::kSin});
+    GaussianPolicyOptions po{n, m, {16, 12}, Activation::kSin};
+    if (normalized) {
+      po.input_offset = {0.3, -1.0, 2.0};
+      po.input_scale = {0.1, 2.0, 0.5};
+    }
+    GaussianPolicy p(po);
     return std::make_unique<Sac>(p, n, m, o);
   };
   auto sac = make(), ref = make();
@@ -115,6 +122,14 @@ TEST(Sac, HandWrittenGradientsMatchAutograd) {
   }
   EXPECT_NEAR(losses.actor, actor_loss.item<double>(), 1e-5 * std::abs(losses.actor) + 1e-6);
   EXPECT_NEAR(losses.entropy, -fresh.log_prob.mean().item<double>(), 1e-5 * std::abs(losses.entropy) + 1e-6);
+}
+
+TEST(Sac, HandWrittenGradientsMatchAutograd) {
+  expect_hand_written_gradients_match_autograd(false);
+}
+
+TEST(Sac, HandWrittenGradientsMatchAutogradWithNormalisedPolicyInputs) {
+  expect_hand_written_gradients_match_autograd(true);
 }
 
 TEST(Sac, CheckpointRoundTripContinuesIdentically) {

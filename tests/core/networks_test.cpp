@@ -5,6 +5,8 @@
 
 #include <cmath>
 
+#include "hlt/nn/batched_forward.h"
+#include "hlt/nn/dense_chain.h"
 #include "hlt/nn/dynamics_model.h"
 #include "hlt/nn/gaussian_policy.h"
 #include "hlt/nn/reward_model.h"
@@ -147,6 +149,75 @@ TEST(GaussianPolicy, LogStdIsClamped) {
       p.fill_(10.0);
   }
   EXPECT_DOUBLE_EQ(policy->forward(torch::ones({1, 1})).second.item<double>(), 2.0);
+}
+
+// Input normalisation is the same network applied to (s - offset) / scale, however the policy is evaluated:
+// its own forward, the mean chain the deterministic planner differentiates, and the planners' batched pass.
+TEST(GaussianPolicy, InputNormalisationIsTheNetworkOnScaledStates) {
+  torch::manual_seed(3);
+  const int64_t n = 4, m = 2;
+  GaussianPolicyOptions o{n, m, {16, 8}, Activation::kRelu};
+  GaussianPolicy raw(o);
+  o.input_offset = {0.5, -0.1, 0.0, 7.0};
+  o.input_scale = {0.05, 0.1, 1.0, 0.3};
+  GaussianPolicy normalized(o);
+  raw->to(torch::kFloat64);
+  normalized->to(torch::kFloat64);
+  {
+    torch::NoGradGuard g;
+    auto from = raw->parameters(), to = normalized->parameters();
+    ASSERT_EQ(from.size(), to.size());
+    for (size_t i = 0; i < from.size(); ++i)
+      to[i].copy_(from[i] + 0.1);  // larger than the initial last layer, so the outputs differ
+    for (size_t i = 0; i < from.size(); ++i)
+      from[i].copy_(to[i]);
+  }
+  const auto s =
+      torch::tensor({0.52, -0.05, 0.3, 7.4, 0.47, -0.2, -1.0, 6.5}, torch::kFloat64).reshape({2, n});
+  const auto scaled =
+      (s - torch::tensor(o.input_offset, torch::kFloat64)) / torch::tensor(o.input_scale, torch::kFloat64);
+  // By hand for the first component: (0.52 - 0.5) / 0.05 = 0.4.
+  EXPECT_NEAR(normalized->normalize(s)[0][0].item<double>(), 0.4, 1e-12);
+  auto [mean, log_std] = normalized->forward(s);
+  auto [raw_mean, raw_log_std] = raw->forward(scaled);
+  EXPECT_TRUE(torch::allclose(mean, raw_mean, 1e-12, 1e-12));
+  EXPECT_TRUE(torch::allclose(log_std, raw_log_std, 1e-12, 1e-12));
+  EXPECT_FALSE(torch::allclose(normalized->mean_action(s), raw->mean_action(s), 1e-6, 1e-6));
+  // The mean chain: values and the gradient with respect to the state (1 / scale times the raw network's).
+  const auto x = s.clone().requires_grad_(true);
+  const auto y = dense_chain(normalized->mean_chain(), {x});
+  EXPECT_TRUE(torch::allclose(y, raw->mean_action(scaled), 1e-12, 1e-12));
+  const auto gx = torch::autograd::grad({y.sum()}, {x})[0];
+  const auto xs = scaled.clone().requires_grad_(true);
+  const auto gs = torch::autograd::grad({raw->mean_action(xs).sum()}, {xs})[0];
+  EXPECT_TRUE(torch::allclose(gx, gs / torch::tensor(o.input_scale, torch::kFloat64), 1e-10, 1e-10));
+  // Asking for the chain draws nothing from the default generator.
+  torch::manual_seed(9);
+  normalized->mean_chain();
+  const double after = torch::rand({1}, torch::kFloat64).item<double>();
+  torch::manual_seed(9);
+  EXPECT_EQ(after, torch::rand({1}, torch::kFloat64).item<double>());
+  // The planners' batched pass.
+  PolicyForward pf(normalized);
+  pf.prepare(2);
+  pf.forward(s);
+  EXPECT_TRUE(torch::allclose(pf.mean(), mean, 1e-12, 1e-12));
+  EXPECT_TRUE(torch::allclose(pf.log_std(), log_std, 1e-12, 1e-12));
+}
+
+TEST(GaussianPolicy, BadInputNormalisationIsAnError) {
+  GaussianPolicyOptions o{2, 1, {4}, Activation::kRelu};
+  o.input_offset = {0.0};
+  o.input_scale = {1.0};
+  EXPECT_THROW(GaussianPolicy{o}, Error);  // one of two components
+  o.input_offset = {0.0, 0.0};
+  o.input_scale = {1.0, 0.0};
+  EXPECT_THROW(GaussianPolicy{o}, Error);  // a zero scale
+  o.input_scale = {1.0, std::nan("")};
+  EXPECT_THROW(GaussianPolicy{o}, Error);
+  o.input_scale = {1.0, 2.0};
+  o.input_offset = {};
+  EXPECT_THROW(GaussianPolicy{o}, Error);  // scales without offsets
 }
 
 TEST(TwinQNetwork, EachCriticIsItsOwnReluMlp) {

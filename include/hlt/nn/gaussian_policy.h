@@ -27,6 +27,10 @@ struct GaussianPolicyOptions {
   double log_std_min = -5.0;
   double log_std_max = 2.0;
   double init_scale = 3e-3;
+  // Input normalisation (both empty: none): the heads see (s - input_offset) / input_scale, each of
+  // state_dim entries, scales > 0. A fixed part of the function, like the activation: every way of
+  // evaluating the policy applies it (forward, mean_chain, PolicyForward, SAC's hand-written pass).
+  std::vector<double> input_offset, input_scale;
 };
 
 struct PolicySample {
@@ -58,11 +62,17 @@ class GaussianPolicyImpl : public torch::nn::Module {
   static torch::Tensor squashed_log_prob(const torch::Tensor& u, const torch::Tensor& action,
                                          const torch::Tensor& mean, const torch::Tensor& log_std);
 
+  // The state as the heads see it: (state - offset) / scale with the options' normalisation, else `state`
+  // itself. Differentiable.
+  torch::Tensor normalize(const torch::Tensor& state) const;
+  bool normalizes_inputs() const { return !options_.input_scale.empty(); }
+
   const GaussianPolicyOptions& options() const { return options_; }
   torch::nn::ModuleList mean_layers{nullptr}, log_std_layers{nullptr};
 
  private:
   GaussianPolicyOptions options_;
+  torch::Tensor input_offset_, input_inv_scale_;  // [n], float64; undefined without normalisation
 };
 TORCH_MODULE(GaussianPolicy);
 
