@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <optional>
+#include <tuple>
 #include <type_traits>
 
 #include <torch/torch.h>
@@ -80,6 +81,10 @@ void PolicyForward::prepare(int64_t batch) {
       weights_.push_back(torch::zeros({in, 2 * mw.size(0)}, opts));
       buffers_.push_back(torch::empty({batch, 2 * mw.size(0)}, opts));
     }
+    if (policy_->normalizes_inputs()) {
+      std::tie(input_offset_, input_inv_scale_) = policy_->input_normalisation(opts);
+      normalized_ = torch::empty({batch, o.state_dim}, opts);
+    }
     mean_ = buffers_.back().narrow(1, 0, o.action_dim);
     log_std_ = buffers_.back().narrow(1, o.action_dim, o.action_dim);
     mean_cols_.clear();
@@ -109,9 +114,13 @@ void PolicyForward::prepare(int64_t batch) {
 void PolicyForward::forward(const at::Tensor& states) {
   torch::NoGradGuard no_grad;  // out= products do not record gradients
   const auto& o = policy_->options();
-  // Normalised inputs (rare: the robot tasks) cost one elementwise pass over the batch.
-  const at::Tensor normalized = policy_->normalizes_inputs() ? policy_->normalize(states) : at::Tensor();
-  const at::Tensor* x = normalized.defined() ? &normalized : &states;
+  const at::Tensor* x = &states;
+  if (normalized_.defined()) {
+    // Normalised inputs (the robot tasks): two elementwise passes into the buffer, nothing allocated.
+    at::sub_out(normalized_, states, input_offset_);
+    normalized_.mul_(input_inv_scale_);
+    x = &normalized_;
+  }
   const size_t layers = buffers_.size();
   for (size_t l = 0; l < layers; ++l) {
     at::mm_out(buffers_[l], *x, weights_[l]);

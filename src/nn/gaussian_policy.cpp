@@ -60,10 +60,17 @@ GaussianPolicyImpl::GaussianPolicyImpl(const GaussianPolicyOptions& o) : options
   log_std_layers = register_module("log_std", make_mlp(o.state_dim, o.hidden, o.action_dim, o.init_scale));
 }
 
+std::pair<torch::Tensor, torch::Tensor> GaussianPolicyImpl::input_normalisation(
+    const torch::TensorOptions& options) const {
+  check(normalizes_inputs(), "GaussianPolicy: input_normalisation() of a policy without normalisation");
+  const auto opts = options.requires_grad(false);
+  return {input_offset_.to(opts), input_inv_scale_.to(opts)};
+}
+
 torch::Tensor GaussianPolicyImpl::normalize(const torch::Tensor& state) const {
   if (!normalizes_inputs()) return state;
-  const auto opts = state.options().requires_grad(false);
-  return (state - input_offset_.to(opts)) * input_inv_scale_.to(opts);
+  const auto [offset, inv_scale] = input_normalisation(state.options());
+  return (state - offset) * inv_scale;
 }
 
 std::pair<torch::Tensor, torch::Tensor> GaussianPolicyImpl::forward(const torch::Tensor& state) {
@@ -87,8 +94,7 @@ DenseChain GaussianPolicyImpl::mean_chain() const {
     // chain holds its layers): gradients reach the state, not the policy's own first layer.
     const auto& first = chain.layers.front();
     torch::NoGradGuard no_grad;
-    const auto opts = first->weight.options().requires_grad(false);
-    const torch::Tensor inv = input_inv_scale_.to(opts);
+    const auto [offset, inv] = input_normalisation(first->weight.options());
     // A Linear draws its initial weights from the default generator: put its state back, so that asking
     // for the chain leaves every later random draw as it was.
     at::Generator generator = at::detail::getDefaultCPUGenerator();
@@ -97,7 +103,7 @@ DenseChain GaussianPolicyImpl::mean_chain() const {
     generator.set_state(generator_state);
     folded->to(first->weight.scalar_type());
     folded->weight.copy_(first->weight * inv);
-    folded->bias.copy_(first->bias - torch::mv(first->weight, input_offset_.to(opts) * inv));
+    folded->bias.copy_(first->bias - torch::mv(first->weight, offset * inv));
     chain.layers.front() = folded;
   }
   return chain;

@@ -56,9 +56,8 @@ double relative_difference(const torch::Tensor& a, const torch::Tensor& b) {
 }
 
 // The update's hand-written gradients against autograd on the losses they differentiate: the critics'
-// from the same initial networks and noise, the policy's after the same critic step.
-// The hand-written update against autograd through the modules; with `normalized` the policy normalises its
-// inputs (the hand-written actor pass then runs on the normalised states).
+// from the same initial networks and noise, the policy's after the same critic step. With `normalized` the
+// policy normalises its inputs (the hand-written actor pass then runs on the normalised states).
 void expect_hand_written_gradients_match_autograd(bool normalized) {
   const int n = 3, m = 2, B = 32;
   SacOptions o;

@@ -66,6 +66,9 @@ class GaussianPolicyImpl : public torch::nn::Module {
   // itself. Differentiable.
   torch::Tensor normalize(const torch::Tensor& state) const;
   bool normalizes_inputs() const { return !options_.input_scale.empty(); }
+  // The normalisation's offset and 1 / scale, each [n], as tensors with `options` (a batched pass converts
+  // them once per planning call, not per step). Precondition: normalizes_inputs().
+  std::pair<torch::Tensor, torch::Tensor> input_normalisation(const torch::TensorOptions& options) const;
 
   const GaussianPolicyOptions& options() const { return options_; }
   torch::nn::ModuleList mean_layers{nullptr}, log_std_layers{nullptr};
