@@ -63,6 +63,10 @@ Config make_train_config() {
       .add_int("imitation.model_updates", 500,
                "imitation methods: dynamics + reward model updates per iteration (batches from D)", 0,
                1000000)
+      .add_bool("imitation.intended_labels", false,
+                "imitation methods: behaviour cloning learns from a noisy demonstrator's noiseless action "
+                "where it has one (the scripted experts; DART), not from the executed action; the models "
+                "always learn from the executed one")
       .add_bool("imitation.expert_episode", true,
                 "imitation methods: also run the demonstrator from each test episode's start and log "
                 "imitation/expert_return (the expert's level in the same episode)")

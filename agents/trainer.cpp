@@ -445,6 +445,7 @@ struct Trainer::Impl {
 
   struct Recorded {
     Eigen::VectorXd s, a, s2;
+    Eigen::VectorXd label;  // what imitation learns from: the policy's intended action, else a
     double r = 0;
     bool terminated = false;
   };
@@ -459,8 +460,8 @@ struct Trainer::Impl {
     return run_episode(
         *env, policy, reset_seed,
         [&](const Transition& t) {
-          out.push_back(
-              {t.observation, t.action, t.result.observation, t.result.reward, t.result.terminated});
+          out.push_back({t.observation, t.action, t.result.observation,
+                         policy.intended_action().value_or(t.action), t.result.reward, t.result.terminated});
           env_steps += env->last_step_frames();
           if (agent) ++agent_steps;
           if (after_step) after_step();
@@ -469,15 +470,32 @@ struct Trainer::Impl {
   }
 
   // Stores a recorded episode with a' = the next step's action; after the last step a' is what `policy`
-  // does at s' (the episode was cut there), or a itself at a terminal state (masked by done).
-  void store(const std::vector<Recorded>& episode, PolicySource& policy,
-             std::initializer_list<ReplayBuffer*> into) {
+  // does at s' (the episode was cut there), or a itself at a terminal state (masked by done). `executed`
+  // gets the actions that ran (the models learn from those), `labelled` (if any) the same or, with
+  // `intended`, the policy's intended actions (PolicySource::intended_action).
+  void store(const std::vector<Recorded>& episode, PolicySource& policy, ReplayBuffer* executed,
+             ReplayBuffer* labelled = nullptr, bool intended = false) {
     for (size_t t = 0; t < episode.size(); ++t) {
       const Recorded& x = episode[t];
-      const Eigen::VectorXd a2 =
-          t + 1 < episode.size() ? episode[t + 1].a : (x.terminated ? x.a : policy.act(x.s2));
-      for (ReplayBuffer* b : into)
-        b->add(x.s.data(), x.a.data(), x.r, x.s2.data(), a2.data(), x.terminated);
+      const bool last = t + 1 == episode.size();
+      Eigen::VectorXd a2, label2;
+      if (!last) {
+        a2 = episode[t + 1].a;
+        label2 = episode[t + 1].label;
+      } else if (x.terminated) {
+        a2 = x.a;
+        label2 = x.label;
+      } else {
+        a2 = policy.act(x.s2);
+        label2 = policy.intended_action().value_or(a2);
+      }
+      executed->add(x.s.data(), x.a.data(), x.r, x.s2.data(), a2.data(), x.terminated);
+      if (!labelled) continue;
+      if (intended) {
+        labelled->add(x.s.data(), x.label.data(), x.r, x.s2.data(), label2.data(), x.terminated);
+      } else {
+        labelled->add(x.s.data(), x.a.data(), x.r, x.s2.data(), a2.data(), x.terminated);
+      }
     }
   }
 
@@ -497,7 +515,8 @@ struct Trainer::Impl {
     std::vector<Recorded> episode;
     const EpisodeStats demo = record_episode(*demonstrator, derive_seed(seed, kDemonstrationEpisode) ^ i,
                                              demo_steps, false, episode);
-    store(episode, *demonstrator, {demonstrations.get(), buffer.get()});
+    store(episode, *demonstrator, buffer.get(), demonstrations.get(),
+          config.get_bool("imitation.intended_labels"));
 
     clear_losses();
     train_learners();
@@ -514,7 +533,7 @@ struct Trainer::Impl {
           if (std::isfinite(e)) ess.add(e);
           if (std::isfinite(sat)) saturated.add(sat);
         });
-    store(episode, tester, {buffer.get()});
+    store(episode, tester, buffer.get());
     ++episodes;
 
     EpisodeStats policy_alone = test;  // bc: the test episode is the policy alone

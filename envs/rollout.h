@@ -20,6 +20,11 @@ class PolicySource {
   virtual ~PolicySource() = default;
   virtual std::string describe() const = 0;
   virtual Eigen::VectorXd act(const Eigen::VectorXd& observation) = 0;
+  // For a demonstrator that adds noise to what it would do: its noiseless action at the observation of the
+  // last act(). Imitation learns from this label while the noisy action is what ran (DART, Laskey et al.
+  // 2017): the noise takes the demonstrations off the nominal path, and the labels say how to get back
+  // without the noise blurring that. Empty for everything else (the executed action is then the label).
+  virtual std::optional<Eigen::VectorXd> intended_action() const { return std::nullopt; }
 };
 
 // "zero", "random" (uniform in [-1, 1], generator seeded with `seed`), "constant:V" (every component V) or

@@ -467,6 +467,26 @@ Vector6d Arm::wrist_wrench() const {
   return w;
 }
 
+double Arm::hand_mass() const {
+  double mass = model_.spec.links[model_.hand].mass;
+  for (int f : model_.fingers)
+    mass += model_.spec.links[f].mass;
+  return mass;
+}
+
+Vector6d Arm::resting_wrist_wrench(double gravity_z) const {
+  Vector6d w = Vector6d::Zero();
+  w[2] = hand_mass() * gravity_z;
+  return w;
+}
+
+Eigen::Vector3d Arm::hand_momentum() const {
+  Eigen::Vector3d p = model_.spec.links[model_.hand].mass * robot_->com_linear_velocity(model_.hand);
+  for (int f : model_.fingers)
+    p += model_.spec.links[f].mass * robot_->com_linear_velocity(f);
+  return p;
+}
+
 bool Arm::solve_ik(const Eigen::Isometry3d& target, const Vector7d& start, Vector7d* q_out) {
   Vector7d q = start;
   bool converged = false;

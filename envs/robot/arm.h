@@ -83,6 +83,14 @@ class Arm {
   // the flange during the last sub-step, world coordinates: holding a block adds its weight, (0, 0, -m g), to
   // the force.
   Vector6d wrist_wrench() const;
+  // The mass (kg) of what hangs on the flange's joint with nothing held: the hand and its fingers.
+  double hand_mass() const;
+  // wrist_wrench() with the arm at rest and nothing touching the hand, under gravity (0, 0, gravity_z): the
+  // hand's weight, no torque (the fingers sit symmetrically about the hand's centre of mass).
+  Vector6d resting_wrist_wrench(double gravity_z) const;
+  // The linear momentum (kg m/s, world) of the hand and its fingers: its rate of change is the force the
+  // wrist spends accelerating them.
+  Eigen::Vector3d hand_momentum() const;
 
   // Damped least-squares inverse kinematics of the tool pose from `start` (positions and orientation), within
   // the joint limits. Returns whether it converged to 0.1 mm and 1 mrad; leaves the arm at the result.

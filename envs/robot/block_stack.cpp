@@ -40,10 +40,6 @@ BlockStack::BlockStack() : scene_(std::make_unique<Tabletop>(stack_settings())) 
   const ArmModel& m = arm.model();
   check(std::abs(m.finger_travel - kFingerTravel) < 1e-12,
         "block_stack: expected {} m of finger travel, got {}", kFingerTravel, m.finger_travel);
-  double mass = m.spec.links[m.hand].mass;
-  for (int f : m.fingers)
-    mass += m.spec.links[f].mass;
-  hand_weight_ = Eigen::Vector3d(0, 0, -mass * 9.8);
   Eigen::Isometry3d start = Eigen::Isometry3d::Identity();
   start.linear() = tool_down();
   start.translation() = Eigen::Vector3d(kBlockX, kBlockY, kStartHeight);
@@ -87,13 +83,13 @@ std::optional<ObservationScale> BlockStack::observation_scale() const {
   s.scale.segment<3>(kBase) = Eigen::Vector3d(0.05, 0.05, 0.01);
   s.offset[kGripper] = 0.9;
   s.scale[kGripper] = 0.1;
-  s.scale.segment<3>(kForce) = Eigen::Vector3d(0.3, 0.3, 0.7);
-  s.scale.segment<3>(kTorque).setConstant(0.01);
+  s.scale.segment<3>(kForce).setConstant(2.0);
+  s.scale.segment<3>(kTorque).setConstant(0.1);
   return s;
 }
 
 Eigen::Vector3d BlockStack::external_force() const {
-  return scene_->wrist_wrench().head<3>() - hand_weight_;
+  return scene_->external_force();
 }
 
 Eigen::VectorXd BlockStack::observation() const {

@@ -77,7 +77,8 @@ class BlockStack : public Env {
   // The arm at its start, fingers open, the block at (x, y, yaw) and the base at (x, y, yaw), both at rest
   // on the table (test scenarios).
   void place(const Eigen::Vector3d& block, const Eigen::Vector3d& base);
-  // The external force on the hand (N, world): the wrist force less the empty hand's weight.
+  // The external force on the hand (N, world): Tabletop::external_force (the wrist force less the hand's
+  // weight, corrected by its m a).
   Eigen::Vector3d external_force() const;
 
  protected:
@@ -89,7 +90,6 @@ class BlockStack : public Env {
  private:
   std::unique_ptr<Tabletop> scene_;
   Vector7d home_ = Vector7d::Zero();
-  Eigen::Vector3d hand_weight_ = Eigen::Vector3d::Zero();
 };
 
 }  // namespace hlt::robot

@@ -19,6 +19,7 @@ constexpr double kApproachHeight = 0.07;  // tool centre point over the block's 
 constexpr double kCarryClearance = 0.03;  // the block's bottom over the base's top while moving
 constexpr double kRetreatHeight = 0.05;   // tool centre point over the stacked block's centre at the end
 constexpr double kOpen = 0.035;           // m: fingers well clear of a 5 cm block
+constexpr double kGraspBand = 0.012;      // m: tool centre point over the block's centre where it closes
 
 // The observation's parts the phases are decided on.
 struct View {
@@ -74,7 +75,7 @@ StackExpert::Phase StackExpert::phase(const Eigen::VectorXd& o) {
   const bool low = v.ee.z() < v.block.z() + kApproachHeight - 0.01;
   // Once low, a wider band keeps the descent going under noise; a larger error goes back up first.
   if (e < 0.006 || (low && e < 0.012)) {
-    return std::abs(v.ee.z() - v.block.z()) < 0.004 ? Phase::kClose : Phase::kDescend;
+    return v.ee.z() - v.block.z() < kGraspBand ? Phase::kClose : Phase::kDescend;
   }
   return Phase::kApproach;
 }
@@ -132,6 +133,7 @@ Eigen::Vector4d StackExpert::nominal_action(const Eigen::VectorXd& o) {
 
 Eigen::VectorXd StackExpert::act(const Eigen::VectorXd& observation) {
   Eigen::Vector4d a = nominal_action(observation);
+  intended_ = Eigen::VectorXd(a);
   for (int i = 0; i < 4; ++i)
     a[i] += noise_ * normal_(rng_);
   return a.cwiseMax(-1.0).cwiseMin(1.0);

@@ -22,6 +22,7 @@ class StackExpert : public PolicySource {
   StackExpert(uint64_t seed, double noise = kNoise);
   std::string describe() const override;
   Eigen::VectorXd act(const Eigen::VectorXd& observation) override;
+  std::optional<Eigen::VectorXd> intended_action() const override { return intended_; }
 
   // The phase the observation puts the task in, and the noiseless action for it.
   static Phase phase(const Eigen::VectorXd& observation);
@@ -31,6 +32,7 @@ class StackExpert : public PolicySource {
 
  private:
   double noise_;
+  std::optional<Eigen::VectorXd> intended_;  // nominal_action of the last act()
   std::mt19937_64 rng_;
   std::normal_distribution<double> normal_{0.0, 1.0};
 };

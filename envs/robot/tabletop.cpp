@@ -15,8 +15,9 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kTableThickness = 0.05;
-// Snapshot layout after the world's values: the filter, the mean wrench, the finger speed.
-constexpr size_t kExtra = 6 + 6 + 1;
+// Snapshot layout after the world's values: the filter, the mean wrench, the finger speed, the external
+// force, the hand's momentum.
+constexpr size_t kExtra = 6 + 6 + 1 + 3 + 3;
 
 bullet::RobotSpec block_spec(const BlockSpec& b, int index) {
   bullet::RobotSpec spec;
@@ -48,6 +49,7 @@ Tabletop::Tabletop(const TabletopSettings& settings) : settings_(settings), cont
         "tabletop: bad control step {} s in {} sub-steps", settings_.control_dt, settings_.substeps);
   bullet::WorldSettings ws;
   ws.solver_iterations = settings_.solver_iterations;
+  gravity_z_ = ws.gravity_z;
   world_ = std::make_unique<bullet::World>(ws);
   const double near = settings_.arm == ArmKind::kSawyer ? 0.2 : -0.3;
   table_ =
@@ -92,7 +94,11 @@ void Tabletop::reset_arm(const Vector7d& q, double finger_opening) {
   arm_->set_configuration(q, finger_opening);
   controller_.reset();
   finger_speed_ = 0.0;
-  mean_wrench_.setZero();
+  // What the wrist reads at rest, not zero: a zero reading would be an external force of the hand's weight
+  // (7.4 N on the Panda) at every episode's first observation, which no later state shows.
+  mean_wrench_ = arm_->resting_wrist_wrench(gravity_z_);
+  external_force_.setZero();
+  hand_momentum_.setZero();
   world_->clear_contacts();
 }
 
@@ -108,6 +114,13 @@ void Tabletop::step(const Vector6d& twist, double finger_speed) {
     sum += arm_->wrist_wrench();
   }
   mean_wrench_ = sum / settings_.substeps;
+  // The hand's motion: dp/dt = weight + external - wrist, and the mean of dp/dt over the step is the change
+  // of p (kept from the last step's end rather than read back, so that a restored snapshot continues
+  // exactly).
+  const Eigen::Vector3d momentum = arm_->hand_momentum();
+  const Eigen::Vector3d accelerating = (momentum - hand_momentum_) / settings_.control_dt;
+  hand_momentum_ = momentum;
+  external_force_ = mean_wrench_.head<3>() - arm_->resting_wrist_wrench(gravity_z_).head<3>() + accelerating;
 }
 
 std::vector<double> Tabletop::save_state() const {
@@ -116,6 +129,8 @@ std::vector<double> Tabletop::save_state() const {
   s.insert(s.end(), f.data(), f.data() + 6);
   s.insert(s.end(), mean_wrench_.data(), mean_wrench_.data() + 6);
   s.push_back(finger_speed_);
+  s.insert(s.end(), external_force_.data(), external_force_.data() + 3);
+  s.insert(s.end(), hand_momentum_.data(), hand_momentum_.data() + 3);
   return s;
 }
 
@@ -129,6 +144,8 @@ void Tabletop::restore_state(const std::vector<double>& state) {
   controller_.set_state(Eigen::Map<const Vector6d>(extra));
   mean_wrench_ = Eigen::Map<const Vector6d>(extra + 6);
   finger_speed_ = extra[12];
+  external_force_ = Eigen::Map<const Eigen::Vector3d>(extra + 13);
+  hand_momentum_ = Eigen::Map<const Eigen::Vector3d>(extra + 16);
 }
 
 bool Tabletop::state_is_finite() const {

@@ -69,7 +69,7 @@ class Tabletop {
   // Puts block `i` at rest at `position` turned by `yaw` about z.
   void set_block(int i, const Eigen::Vector3d& position, double yaw);
   // The arm at rest at `q` with its fingers `finger_opening` open, the filter emptied, every contact
-  // forgotten.
+  // forgotten, the wrist wrench the resting one.
   void reset_arm(const Vector7d& q, double finger_opening = 0.0);
 
   // One control step: the controller takes `twist` (tool velocity, world: linear then angular) and the
@@ -77,6 +77,13 @@ class Tabletop {
   void step(const Vector6d& twist, double finger_speed = 0.0);
   // The wrist wrench averaged over the last control step's sub-steps (force, torque; see Arm::wrist_wrench).
   const Vector6d& wrist_wrench() const { return mean_wrench_; }
+  // The force (N, world) that something other than the arm exerts on the hand, averaged over the last control
+  // step: the wrist force less the hand's weight, corrected by the hand's m a (its momentum's change over the
+  // step), so that it reads zero for a hand at rest or moving freely. A real arm reports this estimate (the
+  // Panda's external wrench is computed from its dynamic model); the raw wrist force also carries m a of the
+  // hand, which follows the commanded velocity's changes rather than contacts (about 1 N at the expert's
+  // speed changes).
+  const Eigen::Vector3d& external_force() const { return external_force_; }
 
   std::vector<double> save_state() const;
   // Throws hlt::Error for a snapshot of the wrong size or with NaN/Inf values.
@@ -95,7 +102,10 @@ class Tabletop {
   std::vector<bullet::Robot*> blocks_;
   EeVelocityController controller_;
   double finger_speed_ = 0.0;
+  double gravity_z_ = 0.0;
   Vector6d mean_wrench_ = Vector6d::Zero();
+  Eigen::Vector3d external_force_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d hand_momentum_ = Eigen::Vector3d::Zero();  // at the end of the last step
 };
 
 // The yaw (rotation about world z) of a pose's x axis.

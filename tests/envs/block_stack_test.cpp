@@ -108,6 +108,20 @@ TEST(BlockStack, ObservationAndStepRewardComeFromTheScene) {
   EXPECT_NEAR(env.observation()[B::kGripper], 1.0, 0.05);
 }
 
+TEST(BlockStack, FirstObservationReadsTheRestingWrench) {
+  // Before any step the wrist has measured nothing; the first observation must still read what the wrist
+  // reads at rest (no external force, no torque), as it does after steps held still.
+  B env;
+  const Eigen::VectorXd first = env.reset(3);
+  EXPECT_LT(first.segment<3>(B::kForce).norm(), 1e-9);
+  EXPECT_LT(first.segment<3>(B::kTorque).norm(), 1e-9);
+  Eigen::VectorXd still;
+  for (int i = 0; i < 5; ++i)
+    still = env.step(Eigen::Vector4d(0, 0, 0, -1)).observation;
+  EXPECT_LT((still.segment<3>(B::kForce) - first.segment<3>(B::kForce)).norm(), 0.05);
+  EXPECT_LT((still.segment<3>(B::kTorque) - first.segment<3>(B::kTorque)).norm(), 0.005);
+}
+
 TEST(BlockStack, SuccessIsTheBlockRestingOnTheBaseReleased) {
   B env;
   env.reset(0);
@@ -218,6 +232,26 @@ TEST(BlockStack, ScriptedPolicyIsRegisteredForThisEnvironmentOnly) {
   const Eigen::VectorXd o = stack->reset(0);
   for (int i = 0; i < 5; ++i)
     EXPECT_EQ(a->act(o), b->act(o));
+}
+
+TEST(BlockStack, ScriptedExpertLabelsItsStepsWithTheNoiselessAction) {
+  auto env = make_env("block_stack");
+  auto expert = make_policy_for("scripted:block_stack", *env, 5);
+  EXPECT_FALSE(expert->intended_action().has_value());  // nothing asked yet
+  Eigen::VectorXd o = env->reset(1);
+  double largest_noise = 0;
+  for (int i = 0; i < 30; ++i) {
+    const Eigen::VectorXd a = expert->act(o);
+    ASSERT_TRUE(expert->intended_action().has_value());
+    const Eigen::VectorXd label = *expert->intended_action();
+    EXPECT_EQ(label, Eigen::VectorXd(StackExpert::nominal_action(o)));
+    largest_noise = std::max(largest_noise, (a - label).cwiseAbs().maxCoeff());
+    o = env->step(a).observation;
+  }
+  // The executed actions carry the noise (standard deviation 0.1), the labels do not.
+  EXPECT_GT(largest_noise, 0.1);
+  // Policies that add no noise have no separate label.
+  EXPECT_FALSE(make_policy_for("zero", *env, 0)->intended_action().has_value());
 }
 
 TEST(BlockStack, ScriptedExpertStacksInNineOfTenEpisodes) {

@@ -282,6 +282,56 @@ TEST(Tabletop, WristForceMeasuresTheWeightOfAHeldBlock) {
   EXPECT_LT(held.head<2>().norm(), 0.05 * block.mass * kG);
 }
 
+TEST(Tabletop, ExternalForceLeavesOutTheHandsOwnWeightAndAcceleration) {
+  BlockSpec block;
+  block.mass = 0.5;
+  block.half_extents = Eigen::Vector3d(0.025, 0.025, 0.025);
+  Tabletop scene(settings_for(ArmKind::kPanda, {block}));
+  scene.set_block(0, {0.5, 0.0, 0.025}, 0.0);
+  place_tool(scene, {0.5, -0.2, 0.15});
+  const double hand_weight = (0.73 + 2 * 0.015) * kG;
+  // Reset: nothing measured yet, the wrist reads its resting value.
+  EXPECT_NEAR(scene.wrist_wrench()[2], -hand_weight, 1e-9);
+  EXPECT_LT(scene.external_force().norm(), 1e-12);
+  // In free air, speeding up and stopping along y and z: the wrist force swings by m a (0.76 kg, up to
+  // ~1.5 m/s^2), the external force stays near zero.
+  Vector6d v = Vector6d::Zero();
+  double raw_swing = 0, external_worst = 0;
+  for (int i = 0; i < 12; ++i) {
+    v[1] = (i % 4 < 2) ? 0.15 : -0.15;
+    v[2] = (i % 3 == 0) ? 0.1 : 0.0;
+    scene.step(v, 0.04);
+    const Eigen::Vector3d raw = scene.wrist_wrench().head<3>() - Eigen::Vector3d(0, 0, -hand_weight);
+    raw_swing = std::max(raw_swing, raw.norm());
+    external_worst = std::max(external_worst, scene.external_force().norm());
+  }
+  std::printf(
+      "[panda] free hand under changing velocity commands: wrist force less weight up to %.3f N, "
+      "external force up to %.3f N\n",
+      raw_swing, external_worst);
+  EXPECT_GT(raw_swing, 0.5);
+  EXPECT_LT(external_worst, 0.1 * raw_swing);
+  // Snapshots carry it.
+  const std::vector<double> snap = scene.save_state();
+  const Eigen::Vector3d before = scene.external_force();
+  scene.step(v, 0.04);
+  scene.restore_state(snap);
+  EXPECT_EQ(scene.external_force(), before);
+  // Holding a block still, it is the block's weight.
+  place_tool(scene, {0.5, 0.0, 0.03});
+  for (int i = 0; i < 10; ++i)
+    scene.step(Vector6d::Zero(), -0.1);
+  Vector6d up = Vector6d::Zero();
+  up[2] = 0.1;
+  for (int i = 0; i < 10; ++i)
+    scene.step(up, -0.1);
+  for (int i = 0; i < 5; ++i)
+    scene.step(Vector6d::Zero(), -0.1);
+  EXPECT_GT(scene.block_pose(0).translation().z(), 0.1);
+  EXPECT_NEAR(scene.external_force()[2], -block.mass * kG, 0.03 * block.mass * kG);
+  EXPECT_LT(scene.external_force().head<2>().norm(), 0.05 * block.mass * kG);
+}
+
 TEST(Tabletop, ASlidingBlockStopsWhereCoulombFrictionSays) {
   BlockSpec block;
   block.friction = 0.5;
