@@ -59,6 +59,7 @@ GaussianPolicy& config_policy(LearnerContext& context) {
       const ObservationScale& s = *context.observation_scale;
       po.input_offset.assign(s.offset.data(), s.offset.data() + s.offset.size());
       po.input_scale.assign(s.scale.data(), s.scale.data() + s.scale.size());
+      po.input_reference.assign(s.reference.data(), s.reference.data() + s.reference.size());
     }
     context.models.policy = GaussianPolicy(po);
   }

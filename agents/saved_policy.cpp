@@ -55,10 +55,15 @@ SavedPolicy load_saved_policy(const std::string& path) {
     const at::Tensor scale = r.tensor("policy_input_scale").to(torch::kFloat64).contiguous();
     o.input_offset.assign(offset.data_ptr<double>(), offset.data_ptr<double>() + offset.numel());
     o.input_scale.assign(scale.data_ptr<double>(), scale.data_ptr<double>() + scale.numel());
+    if (r.has("policy_input_reference")) {
+      const at::Tensor ref = r.tensor("policy_input_reference").to(torch::kInt64).contiguous();
+      o.input_reference.assign(ref.data_ptr<int64_t>(), ref.data_ptr<int64_t>() + ref.numel());
+    }
   }
   GaussianPolicy policy(o);
   r.load_module("policy", *policy);
   policy->eval();
+  out.options = o;
   out.source = std::make_unique<CheckpointPolicy>(
       policy, fmt::format("policy mean from {} ({} on {})", path, out.method, out.env));
   return out;

@@ -7,14 +7,16 @@
 #include <string>
 
 #include "envs/rollout.h"
+#include "hlt/nn/gaussian_policy.h"
 
 namespace hlt {
 
 struct SavedPolicy {
   std::unique_ptr<PolicySource> source;
-  std::string env;     // the environment it was trained on
-  std::string method;  // the method that trained it
-  int frame_skip = 1;  // the frame skip it was trained with
+  std::string env;                // the environment it was trained on
+  std::string method;             // the method that trained it
+  int frame_skip = 1;             // the frame skip it was trained with
+  GaussianPolicyOptions options;  // the policy as rebuilt, its input normalisation included
 };
 
 // Throws hlt::Error if the file is not an hlt checkpoint or holds no policy (e.g. a baseline without one).

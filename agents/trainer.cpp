@@ -623,6 +623,8 @@ struct Trainer::Impl {
       if (!po.input_scale.empty()) {
         w.add_tensor("policy_input_offset", torch::tensor(po.input_offset, torch::kFloat64));
         w.add_tensor("policy_input_scale", torch::tensor(po.input_scale, torch::kFloat64));
+        if (!po.input_reference.empty())
+          w.add_tensor("policy_input_reference", torch::tensor(po.input_reference, torch::kInt64));
       }
       w.add_module("policy", *models.policy);
     }

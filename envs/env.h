@@ -30,8 +30,11 @@ struct StepResult {
 // Where an environment's observations typically lie: component i around offset[i], spread over about
 // scale[i] (> 0). Learners that normalise their inputs use (o - offset) / scale; the numbers are the task's
 // physical ranges (its workspace, its forces), fixed, so a normalised network means the same on any data.
+// With `reference` (empty, or one entry per component: -1 or another component's index r), component i is
+// read as o_i - o_r before its offset and scale: a position relative to another, over the range it spans.
 struct ObservationScale {
   Eigen::VectorXd offset, scale;
+  Eigen::VectorXi reference;
 };
 
 // A snapshot of an environment: simulator state, random generator and step counter.

@@ -72,15 +72,21 @@ std::optional<ObservationScale> BlockStack::observation_scale() const {
   ObservationScale s;
   s.offset = Eigen::VectorXd::Zero(kObsDim);
   s.scale = Eigen::VectorXd::Ones(kObsDim);
-  // Positions: x and z over the task's few centimetres, y over the 20 cm between the blocks' spots.
+  // The tool over the task's few centimetres in x and z, the 20 cm between the blocks' spots in y. The block
+  // relative to the tool, over the centimetre that decides a grasp (from 9.5 cm under the tool at the start
+  // to level with it); the base relative to the block, the way still to carry it (0.2 m in y at the start).
+  // Absolute, a 1 cm offset between block and tool was a difference of 0.1-0.2 between two inputs spread
+  // over the workspace, and cloned policies descended without centring over the block.
+  s.reference = Eigen::VectorXi::Constant(kObsDim, -1);
   const Eigen::Vector3d centre(0.5 * (kBlockX + kBaseX), 0.5 * (kBlockY + kBaseY), 0.0);
-  const Eigen::Vector3d spread(0.05, 0.1, 0.03);
   s.offset.segment<3>(kEe) = centre + Eigen::Vector3d(0, 0, 0.07);
-  s.offset.segment<3>(kBlock) = centre + Eigen::Vector3d(0, 0, 0.05);
-  s.offset.segment<3>(kBase) = Eigen::Vector3d(kBaseX, kBaseY, kBlockHalf);
-  s.scale.segment<3>(kEe) = spread;
-  s.scale.segment<3>(kBlock) = spread;
-  s.scale.segment<3>(kBase) = Eigen::Vector3d(0.05, 0.05, 0.01);
+  s.scale.segment<3>(kEe) = Eigen::Vector3d(0.05, 0.1, 0.03);
+  s.reference.segment<3>(kBlock) = Eigen::Vector3i(kEe, kEe + 1, kEe + 2);
+  s.offset.segment<3>(kBlock) = Eigen::Vector3d(0, 0, -0.05);
+  s.scale.segment<3>(kBlock) = Eigen::Vector3d(0.01, 0.01, 0.03);
+  s.reference.segment<3>(kBase) = Eigen::Vector3i(kBlock, kBlock + 1, kBlock + 2);
+  s.offset.segment<3>(kBase) = Eigen::Vector3d(0.025, 0.1, -0.025);
+  s.scale.segment<3>(kBase) = Eigen::Vector3d(0.02, 0.05, 0.02);
   s.offset[kGripper] = 0.9;
   s.scale[kGripper] = 0.1;
   s.scale.segment<3>(kForce).setConstant(2.0);

@@ -82,7 +82,10 @@ void PolicyForward::prepare(int64_t batch) {
       buffers_.push_back(torch::empty({batch, 2 * mw.size(0)}, opts));
     }
     if (policy_->normalizes_inputs()) {
-      std::tie(input_offset_, input_inv_scale_) = policy_->input_normalisation(opts);
+      const InputNormalisation n = policy_->input_normalisation(opts);
+      input_offset_ = n.offset;
+      input_inv_scale_ = n.inv_scale;
+      input_map_t_ = n.map_t;
       normalized_ = torch::empty({batch, o.state_dim}, opts);
     }
     mean_ = buffers_.back().narrow(1, 0, o.action_dim);
@@ -116,8 +119,14 @@ void PolicyForward::forward(const at::Tensor& states) {
   const auto& o = policy_->options();
   const at::Tensor* x = &states;
   if (normalized_.defined()) {
-    // Normalised inputs (the robot tasks): two elementwise passes into the buffer, nothing allocated.
-    at::sub_out(normalized_, states, input_offset_);
+    // Normalised inputs (the robot tasks): elementwise passes into the buffer (after one product for
+    // references), nothing allocated.
+    if (input_map_t_.defined()) {
+      at::mm_out(normalized_, states, input_map_t_);
+      normalized_.sub_(input_offset_);
+    } else {
+      at::sub_out(normalized_, states, input_offset_);
+    }
     normalized_.mul_(input_inv_scale_);
     x = &normalized_;
   }

@@ -205,7 +205,73 @@ TEST(GaussianPolicy, InputNormalisationIsTheNetworkOnScaledStates) {
   EXPECT_TRUE(torch::allclose(pf.log_std(), log_std, 1e-12, 1e-12));
 }
 
+// With references, component i is read relative to component r(i) first: the same network on
+// ((s_i - s_r(i)) - offset) / scale, in all three ways of evaluating it, and the state gradient follows the
+// chain rule through the difference.
+TEST(GaussianPolicy, InputReferencesAreTheNetworkOnRelativeStates) {
+  torch::manual_seed(4);
+  const int64_t n = 4, m = 2;
+  GaussianPolicyOptions o{n, m, {16, 8}, Activation::kRelu};
+  GaussianPolicy raw(o);
+  o.input_offset = {0.5, 0.0, 0.1, 0.0};
+  o.input_scale = {0.05, 0.01, 0.2, 0.5};
+  o.input_reference = {-1, 0, -1, 1};  // s1 - s0, and s3 - s1 (the raw s1)
+  GaussianPolicy relative(o);
+  raw->to(torch::kFloat64);
+  relative->to(torch::kFloat64);
+  {
+    torch::NoGradGuard g;
+    auto from = raw->parameters(), to = relative->parameters();
+    for (size_t i = 0; i < from.size(); ++i)
+      to[i].copy_(from[i] + 0.1);
+    for (size_t i = 0; i < from.size(); ++i)
+      from[i].copy_(to[i]);
+  }
+  const auto s =
+      torch::tensor({0.52, 0.525, 0.3, 1.2, 0.47, 0.468, -1.0, 0.2}, torch::kFloat64).reshape({2, n});
+  auto by_hand = [&](const torch::Tensor& x) {
+    const auto c = x.unbind(1);
+    const auto rel = torch::stack({c[0], c[1] - c[0], c[2], c[3] - c[1]}, 1);
+    return (rel - torch::tensor(o.input_offset, torch::kFloat64)) /
+           torch::tensor(o.input_scale, torch::kFloat64);
+  };
+  // By hand: (0.525 - 0.52 - 0) / 0.01 = 0.5 and (1.2 - 0.525 - 0) / 0.5 = 1.35.
+  EXPECT_NEAR(relative->normalize(s)[0][1].item<double>(), 0.5, 1e-12);
+  EXPECT_NEAR(relative->normalize(s)[0][3].item<double>(), 1.35, 1e-12);
+  auto [mean, log_std] = relative->forward(s);
+  auto [raw_mean, raw_log_std] = raw->forward(by_hand(s));
+  EXPECT_TRUE(torch::allclose(mean, raw_mean, 1e-12, 1e-12));
+  EXPECT_TRUE(torch::allclose(log_std, raw_log_std, 1e-12, 1e-12));
+  const auto x = s.clone().requires_grad_(true);
+  const auto y = dense_chain(relative->mean_chain(), {x});
+  const auto xh = s.clone().requires_grad_(true);
+  const auto yh = raw->mean_action(by_hand(xh));
+  EXPECT_TRUE(torch::allclose(y, yh, 1e-12, 1e-12));
+  const auto gx = torch::autograd::grad({y.sum()}, {x})[0];
+  const auto gh = torch::autograd::grad({yh.sum()}, {xh})[0];
+  EXPECT_TRUE(torch::allclose(gx, gh, 1e-10, 1e-10));
+  PolicyForward pf(relative);
+  pf.prepare(2);
+  pf.forward(s);
+  EXPECT_TRUE(torch::allclose(pf.mean(), mean, 1e-12, 1e-12));
+  EXPECT_TRUE(torch::allclose(pf.log_std(), log_std, 1e-12, 1e-12));
+}
+
 TEST(GaussianPolicy, BadInputNormalisationIsAnError) {
+  {
+    GaussianPolicyOptions o{2, 1, {4}, Activation::kRelu};
+    o.input_reference = {-1, 0};
+    EXPECT_THROW(GaussianPolicy{o}, Error);  // references without the normalisation
+    o.input_offset = {0.0, 0.0};
+    o.input_scale = {1.0, 1.0};
+    EXPECT_NO_THROW(GaussianPolicy{o});
+    o.input_reference = {-1, 1};
+    EXPECT_THROW(GaussianPolicy{o}, Error);  // relative to itself
+    o.input_reference = {-1, 2};
+    EXPECT_THROW(GaussianPolicy{o}, Error);  // no such component
+    o.input_reference = {-1};
+    EXPECT_THROW(GaussianPolicy{o}, Error);  // one of two
+  }
   GaussianPolicyOptions o{2, 1, {4}, Activation::kRelu};
   o.input_offset = {0.0};
   o.input_scale = {1.0};

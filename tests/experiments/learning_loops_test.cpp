@@ -11,6 +11,8 @@
 
 #include <fmt/format.h>
 
+#include "agents/saved_policy.h"
+#include "envs/registry.h"
 #include "experiments/cli_support.h"
 #include "hlt/simd/vector_math.h"
 #include "hlt/util/blas_kernel.h"
@@ -189,6 +191,18 @@ TEST(LearningLoops, RobotTasksLogTheirSuccess) {
     EXPECT_EQ(tags.at(tag).size(), 2u) << tag;
   }
   EXPECT_GE(tags.at("imitation/expert_success")[0] + tags.at("imitation/expert_success")[1], 1.0);
+  // block_stack.yaml has the policy see its inputs normalised: the checkpoint carries the environment's
+  // declared ranges and references, so hlt_rollout rebuilds the same function.
+  const SavedPolicy saved = load_saved_policy(stack + "/final.pt");
+  const std::optional<ObservationScale> declared = make_env("block_stack")->observation_scale();
+  ASSERT_TRUE(declared.has_value());
+  const auto as_vector = [](const auto& v) { return std::vector<double>(v.data(), v.data() + v.size()); };
+  EXPECT_EQ(saved.options.input_offset, as_vector(declared->offset));
+  EXPECT_EQ(saved.options.input_scale, as_vector(declared->scale));
+  EXPECT_EQ(saved.options.input_reference,
+            std::vector<int64_t>(declared->reference.data(),
+                                 declared->reference.data() + declared->reference.size()));
+  EXPECT_FALSE(saved.options.input_reference.empty());
 }
 
 TEST(LearningLoops, BehaviourCloningAndTheDeterministicVariantRun) {

@@ -80,7 +80,7 @@ class PolicyForward {
   std::vector<int64_t> widths_;                   // hidden width of one head per hidden layer
   at::Tensor mean_, log_std_;
   // With input normalisation: its offset and 1 / scale in the weights' dtype, and the normalised states.
-  at::Tensor input_offset_, input_inv_scale_, normalized_;
+  at::Tensor input_offset_, input_inv_scale_, input_map_t_, normalized_;
 };
 
 // The dynamics and reward models on the same batch of (s, a): s' and r(s, a).

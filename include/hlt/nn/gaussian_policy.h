@@ -31,6 +31,16 @@ struct GaussianPolicyOptions {
   // state_dim entries, scales > 0. A fixed part of the function, like the activation: every way of
   // evaluating the policy applies it (forward, mean_chain, PolicyForward, SAC's hand-written pass).
   std::vector<double> input_offset, input_scale;
+  // Optional, with the normalisation (empty: none): component i is seen relative to component
+  // input_reference[i] (-1: to nothing), s_i - s_r before the offset and scale, r != i; references read the
+  // raw state. A block's position relative to the gripper, say, shown at the millimetres that matter.
+  std::vector<int64_t> input_reference;
+};
+
+// The normalisation as tensors: the heads see (s map_t - offset) * inv_scale, with map_t ([n, n]) undefined
+// when no component has a reference.
+struct InputNormalisation {
+  torch::Tensor offset, inv_scale, map_t;
 };
 
 struct PolicySample {
@@ -62,13 +72,13 @@ class GaussianPolicyImpl : public torch::nn::Module {
   static torch::Tensor squashed_log_prob(const torch::Tensor& u, const torch::Tensor& action,
                                          const torch::Tensor& mean, const torch::Tensor& log_std);
 
-  // The state as the heads see it: (state - offset) / scale with the options' normalisation, else `state`
-  // itself. Differentiable.
+  // The state as the heads see it: (state relative to its references - offset) / scale with the options'
+  // normalisation, else `state` itself. Differentiable.
   torch::Tensor normalize(const torch::Tensor& state) const;
   bool normalizes_inputs() const { return !options_.input_scale.empty(); }
-  // The normalisation's offset and 1 / scale, each [n], as tensors with `options` (a batched pass converts
-  // them once per planning call, not per step). Precondition: normalizes_inputs().
-  std::pair<torch::Tensor, torch::Tensor> input_normalisation(const torch::TensorOptions& options) const;
+  // The normalisation as tensors with `options` (a batched pass converts them once per planning call, not
+  // per step). Precondition: normalizes_inputs().
+  InputNormalisation input_normalisation(const torch::TensorOptions& options) const;
 
   const GaussianPolicyOptions& options() const { return options_; }
   torch::nn::ModuleList mean_layers{nullptr}, log_std_layers{nullptr};
@@ -76,6 +86,7 @@ class GaussianPolicyImpl : public torch::nn::Module {
  private:
   GaussianPolicyOptions options_;
   torch::Tensor input_offset_, input_inv_scale_;  // [n], float64; undefined without normalisation
+  torch::Tensor input_map_t_;                     // [n, n], float64; undefined without references
 };
 TORCH_MODULE(GaussianPolicy);
 
