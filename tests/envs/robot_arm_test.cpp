@@ -241,12 +241,30 @@ TEST(EeControl, LowPassFilterAndHelpers) {
 
 INSTANTIATE_TEST_SUITE_P(Robot, Arms, testing::Values(ArmKind::kSawyer, ArmKind::kPanda), arm_name);
 
-TEST(Tabletop, WristForceMeasuresTheWeightOfAHeldBlock) {
+// A 0.5 kg 5 cm block at (0.5, 0) on the Panda's table.
+constexpr double kHeldMass = 0.5;
+std::unique_ptr<Tabletop> panda_with_block() {
   BlockSpec block;
-  block.mass = 0.5;
+  block.mass = kHeldMass;
   block.half_extents = Eigen::Vector3d(0.025, 0.025, 0.025);
-  Tabletop scene(settings_for(ArmKind::kPanda, {block}));
-  scene.set_block(0, {0.5, 0.0, 0.025}, 0.0);
+  auto scene = std::make_unique<Tabletop>(settings_for(ArmKind::kPanda, {block}));
+  scene->set_block(0, {0.5, 0.0, 0.025}, 0.0);
+  return scene;
+}
+
+// From the open fingers around the block: close on it for 1 s, then lift it at 0.1 m/s for 1 s.
+void grasp_and_lift(Tabletop& scene) {
+  for (int i = 0; i < 10; ++i)
+    scene.step(Vector6d::Zero(), -0.1);
+  Vector6d up = Vector6d::Zero();
+  up[2] = 0.1;
+  for (int i = 0; i < 10; ++i)
+    scene.step(up, -0.1);
+}
+
+TEST(Tabletop, WristForceMeasuresTheWeightOfAHeldBlock) {
+  auto owned = panda_with_block();
+  Tabletop& scene = *owned;
   place_tool(scene, {0.5, 0.0, 0.03});
   Vector6d still = Vector6d::Zero();
   // Open, at rest around the block: the wrist carries the hand and fingers only.
@@ -254,12 +272,7 @@ TEST(Tabletop, WristForceMeasuresTheWeightOfAHeldBlock) {
     scene.step(still, 0.0);
   const Vector6d empty = scene.wrist_wrench();
   // Close on the block, lift it 10 cm, hold it still.
-  for (int i = 0; i < 10; ++i)
-    scene.step(still, -0.1);
-  Vector6d up = Vector6d::Zero();
-  up[2] = 0.1;
-  for (int i = 0; i < 10; ++i)
-    scene.step(up, -0.1);
+  grasp_and_lift(scene);
   // Held still: the stop's deceleration is over after a few steps.
   for (int i = 0; i < 5; ++i)
     scene.step(still, -0.1);
@@ -274,20 +287,17 @@ TEST(Tabletop, WristForceMeasuresTheWeightOfAHeldBlock) {
   std::printf(
       "[panda] wrist force at rest open %.4f N (hand and fingers weigh %.4f N); holding the %.2f kg "
       "block lifted to z %.3f m: %.4f N, change %.4f N against its weight %.4f N\n",
-      empty[2], -hand_weight, block.mass, lifted, held[2], held[2] - empty[2], -block.mass * kG);
+      empty[2], -hand_weight, kHeldMass, lifted, held[2], held[2] - empty[2], -kHeldMass * kG);
   EXPECT_GT(lifted, 0.1);
   EXPECT_NEAR(empty[2], -hand_weight, 0.02 * hand_weight);
-  EXPECT_NEAR(held[2] - empty[2], -block.mass * kG, 0.02 * block.mass * kG);
+  EXPECT_NEAR(held[2] - empty[2], -kHeldMass * kG, 0.02 * kHeldMass * kG);
   // Held still, the force is vertical.
-  EXPECT_LT(held.head<2>().norm(), 0.05 * block.mass * kG);
+  EXPECT_LT(held.head<2>().norm(), 0.05 * kHeldMass * kG);
 }
 
 TEST(Tabletop, ExternalForceLeavesOutTheHandsOwnWeightAndAcceleration) {
-  BlockSpec block;
-  block.mass = 0.5;
-  block.half_extents = Eigen::Vector3d(0.025, 0.025, 0.025);
-  Tabletop scene(settings_for(ArmKind::kPanda, {block}));
-  scene.set_block(0, {0.5, 0.0, 0.025}, 0.0);
+  auto owned = panda_with_block();
+  Tabletop& scene = *owned;
   place_tool(scene, {0.5, -0.2, 0.15});
   const double hand_weight = (0.73 + 2 * 0.015) * kG;
   // Reset: nothing measured yet, the wrist reads its resting value.
@@ -319,17 +329,12 @@ TEST(Tabletop, ExternalForceLeavesOutTheHandsOwnWeightAndAcceleration) {
   EXPECT_EQ(scene.external_force(), before);
   // Holding a block still, it is the block's weight.
   place_tool(scene, {0.5, 0.0, 0.03});
-  for (int i = 0; i < 10; ++i)
-    scene.step(Vector6d::Zero(), -0.1);
-  Vector6d up = Vector6d::Zero();
-  up[2] = 0.1;
-  for (int i = 0; i < 10; ++i)
-    scene.step(up, -0.1);
+  grasp_and_lift(scene);
   for (int i = 0; i < 5; ++i)
     scene.step(Vector6d::Zero(), -0.1);
   EXPECT_GT(scene.block_pose(0).translation().z(), 0.1);
-  EXPECT_NEAR(scene.external_force()[2], -block.mass * kG, 0.03 * block.mass * kG);
-  EXPECT_LT(scene.external_force().head<2>().norm(), 0.05 * block.mass * kG);
+  EXPECT_NEAR(scene.external_force()[2], -kHeldMass * kG, 0.03 * kHeldMass * kG);
+  EXPECT_LT(scene.external_force().head<2>().norm(), 0.05 * kHeldMass * kG);
 }
 
 TEST(Tabletop, ASlidingBlockStopsWhereCoulombFrictionSays) {

@@ -3,7 +3,7 @@
 block was lifted, where it ended against the base, whether the gripper was open at the end.
 
   hlt_rollout --env block_stack --policy checkpoint:RUN/final.pt --episodes 5 --seed 1000 --csv OUT.csv
-  failures.py OUT.csv [...]
+  experiments/analysis/stack_failures.py OUT.csv [...]
 """
 import csv
 import sys
