@@ -130,9 +130,20 @@ at::Tensor StochasticHybrid::compute_action(const at::Tensor& state) {
                            options_.min_ess);
     // a_t += sum_k w_t^k (v_t^k - a_t)
     auto plan = row_map<T>(plan_);
+    Eigen::Map<const RowMatrix<T>> all_samples(samples_.data_ptr<T>(), H * K, m);
+    const bool all_finite = all_samples.allFinite();
     for (int64_t t = 0; t < H; ++t) {
       Eigen::Map<const RowMatrix<T>> v(samples_.data_ptr<T>() + t * K * m, K, m);
-      plan.row(t) += w.row(t) * (v.rowwise() - plan.row(t));
+      if (all_finite) {
+        plan.row(t) += w.row(t) * (v.rowwise() - plan.row(t));
+      } else {
+        // A diverged rollout's later actions are NaN (drawn at NaN states) and its weight is 0: leave it
+        // out rather than let 0 x NaN through. Rows with no finite weight stay NaN (the fallback).
+        Eigen::Matrix<T, 1, Eigen::Dynamic> step = Eigen::Matrix<T, 1, Eigen::Dynamic>::Zero(m);
+        for (int64_t k = 0; k < K; ++k)
+          if (w(t, k) != T(0) || !std::isfinite(w(t, k))) step += w(t, k) * (v.row(k) - plan.row(t));
+        plan.row(t) += step;
+      }
     }
     finite = plan.allFinite();
     // Diagnostics of step 0's weights: effective sample size and the weight on saturated actions.

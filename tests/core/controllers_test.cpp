@@ -694,6 +694,38 @@ TEST(StochasticHybrid, UniformWeightsHaveFullEffectiveSampleSize) {
   EXPECT_NEAR(h.diagnostics().weight_ess, 25.0, 1e-9);
 }
 
+TEST(StochasticHybrid, ADivergedSampleGetsNoWeightAndTheOthersShareIt) {
+  // Sample 2's rollout left the numbers (its return is NaN from step 0, its density Inf at step 1).
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  RowMatrix<double> scaled(2, 4), density(2, 4);
+  scaled << 0.5, 1.0, nan, 2.0, 0.1, 0.4, nan, 0.3;
+  density << -1.0, -0.5, -2.0, -0.2, -0.3, -0.1, std::numeric_limits<double>::infinity(), -0.7;
+  // The three finite samples alone.
+  RowMatrix<double> s3(2, 3), d3(2, 3);
+  s3 << 0.5, 1.0, 2.0, 0.1, 0.4, 0.3;
+  d3 << -1.0, -0.5, -0.2, -0.3, -0.1, -0.7;
+  for (double min_ess : {0.0, 2.5}) {
+    const RowMatrix<double> w = planner_weights<double>(scaled, &density, 0.0, min_ess);
+    const RowMatrix<double> w3 = planner_weights<double>(s3, &d3, 0.0, min_ess);
+    ASSERT_TRUE(w.allFinite());
+    EXPECT_EQ(w(0, 2), 0.0);
+    EXPECT_EQ(w(1, 2), 0.0);
+    for (int t = 0; t < 2; ++t) {
+      EXPECT_EQ(w(t, 0), w3(t, 0));
+      EXPECT_EQ(w(t, 1), w3(t, 1));
+      EXPECT_EQ(w(t, 3), w3(t, 2));
+    }
+  }
+  // A NaN in the density alone also leaves the sample out.
+  density(0, 2) = -2.0;
+  density(1, 2) = nan;
+  scaled(0, 2) = scaled(1, 2) = 0.0;
+  EXPECT_EQ(planner_weights<double>(scaled, &density, 0.0, 0.0)(0, 2), 0.0);
+  // No finite sample: NaN weights, which make the controller fall back to its policy.
+  scaled.setConstant(nan);
+  EXPECT_FALSE(planner_weights<double>(scaled, nullptr, 0.0, 0.0).allFinite());
+}
+
 TEST(StochasticHybrid, MinimumEffectiveSampleSizeTempersOnlyTheRowsThatNeedIt) {
   // Row 0: returns far apart (one sample takes all the weight); row 1: equal returns (already uniform).
   RowMatrix<double> scaled(2, 4);

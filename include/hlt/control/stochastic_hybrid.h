@@ -6,6 +6,7 @@
 #pragma once
 
 #include <functional>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -53,12 +54,34 @@ using TerminalValue = std::function<at::Tensor(const at::Tensor& states)>;
 // log-densities [H, K]: per row w ~ exp(beta J / lambda + log p) + floor (after subtracting the row's max),
 // normalised, with beta = 1 unless min_ess asks for less (found by bisection, 40 halvings). Returns the
 // weights; `betas` (if given) receives each row's beta.
+// A sample (column) with a non-finite return or density anywhere, a rollout whose predicted states left
+// what the models can represent, gets weight 0 in every row, and the others share the weight as if it had
+// not been drawn; with no finite sample the weights are NaN (the controller then falls back).
 template <typename T>
 RowMatrix<T> planner_weights(const RowMatrix<T>& scaled_returns, const RowMatrix<T>* log_density,
                              double floor, double min_ess,
                              Eigen::Matrix<T, Eigen::Dynamic, 1>* betas = nullptr) {
   const Eigen::Index H = scaled_returns.rows();
   if (betas) betas->setOnes(H);
+  if (!scaled_returns.allFinite() || (log_density && !log_density->allFinite())) {
+    std::vector<Eigen::Index> valid;
+    for (Eigen::Index k = 0; k < scaled_returns.cols(); ++k)
+      if (scaled_returns.col(k).allFinite() && (!log_density || log_density->col(k).allFinite()))
+        valid.push_back(k);
+    RowMatrix<T> w = RowMatrix<T>::Zero(H, scaled_returns.cols());
+    if (valid.empty())
+      return RowMatrix<T>::Constant(H, scaled_returns.cols(), std::numeric_limits<T>::quiet_NaN());
+    RowMatrix<T> j(H, static_cast<Eigen::Index>(valid.size())), d;
+    if (log_density) d.resize(H, j.cols());
+    for (size_t i = 0; i < valid.size(); ++i) {
+      j.col(static_cast<Eigen::Index>(i)) = scaled_returns.col(valid[i]);
+      if (log_density) d.col(static_cast<Eigen::Index>(i)) = log_density->col(valid[i]);
+    }
+    const RowMatrix<T> wv = planner_weights<T>(j, log_density ? &d : nullptr, floor, min_ess, betas);
+    for (size_t i = 0; i < valid.size(); ++i)
+      w.col(valid[i]) = wv.col(static_cast<Eigen::Index>(i));
+    return w;
+  }
   // The paper's weights, all rows at once (this exact expression: the methods' logs are bit-exact).
   RowMatrix<T> log_w = scaled_returns;
   if (log_density) log_w += *log_density;
