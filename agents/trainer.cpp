@@ -524,6 +524,7 @@ struct Trainer::Impl {
     const uint64_t start = derive_seed(seed, kEvalEpisode) ^ i;
     // The planner's weight diagnostics over the test episode say whether it trusted a few rollouts.
     Stats ess, saturated;
+    const int64_t fallbacks_before = controller->diagnostics().fallbacks;
     ControllerPolicy tester(*controller, [this](Controller& c) { tell_interactions(c); });
     const EpisodeStats test = record_episode(
         tester, start, test_steps, true, episode, [&] { tester.reset(); },
@@ -573,6 +574,10 @@ struct Trainer::Impl {
     log->log(step, "imitation/test_length", static_cast<double>(test.length));
     log->log(step, "imitation/policy_return", policy_return);
     if (ess.count) log->log(step, "imitation/weight_ess", ess.mean());
+    // Steps where the controller's action was not finite and its policy acted instead (train/fallbacks
+    // of the online loop).
+    log->log(step, "imitation/fallbacks",
+             static_cast<double>(controller->diagnostics().fallbacks - fallbacks_before));
     if (saturated.count) log->log(step, "imitation/saturated_weight", saturated.mean());
     if (std::isfinite(expert_return)) log->log(step, "imitation/expert_return", expert_return);
     auto log_success = [&](const char* tag, const std::optional<bool>& ok) {

@@ -128,8 +128,8 @@ TEST(LearningLoops, HybridImitationLogsItsTagsAndResumesExactly) {
   const auto tags = by_tag(dir + "/scalars.csv");
   EXPECT_EQ(tags.at("imitation/demonstrations"), (std::vector<double>{1, 2, 3}));
   for (const char* tag : {"imitation/test_return", "imitation/policy_return", "imitation/expert_return",
-                          "imitation/demonstration_return", "loss/bc", "loss/dynamics", "loss/reward",
-                          "time/iteration_seconds"}) {
+                          "imitation/demonstration_return", "imitation/fallbacks", "loss/bc", "loss/dynamics",
+                          "loss/reward", "time/iteration_seconds"}) {
     ASSERT_TRUE(tags.count(tag)) << tag;
     EXPECT_EQ(tags.at(tag).size(), 3u) << tag;
   }
