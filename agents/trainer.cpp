@@ -534,6 +534,8 @@ struct Trainer::Impl {
           if (std::isfinite(e)) ess.add(e);
           if (std::isfinite(sat)) saturated.add(sat);
         });
+    // Counted now: the extra test episodes below use the same controller.
+    const int64_t test_fallbacks = controller->diagnostics().fallbacks - fallbacks_before;
     store(episode, tester, buffer.get());
     ++episodes;
 
@@ -576,8 +578,7 @@ struct Trainer::Impl {
     if (ess.count) log->log(step, "imitation/weight_ess", ess.mean());
     // Steps where the controller's action was not finite and its policy acted instead (train/fallbacks
     // of the online loop).
-    log->log(step, "imitation/fallbacks",
-             static_cast<double>(controller->diagnostics().fallbacks - fallbacks_before));
+    log->log(step, "imitation/fallbacks", static_cast<double>(test_fallbacks));
     if (saturated.count) log->log(step, "imitation/saturated_weight", saturated.mean());
     if (std::isfinite(expert_return)) log->log(step, "imitation/expert_return", expert_return);
     auto log_success = [&](const char* tag, const std::optional<bool>& ok) {

@@ -133,6 +133,8 @@ TEST(LearningLoops, HybridImitationLogsItsTagsAndResumesExactly) {
     ASSERT_TRUE(tags.count(tag)) << tag;
     EXPECT_EQ(tags.at(tag).size(), 3u) << tag;
   }
+  for (double f : tags.at("imitation/fallbacks"))
+    EXPECT_LE(f, 30.0);  // steps of the 30-step test episode only
   EXPECT_FALSE(tags.count("loss/critic"));             // no SAC in imitation
   EXPECT_FALSE(tags.count("imitation/test_success"));  // the pendulum has no success criterion
   // The planner's weight diagnostics of each test episode: an effective sample size in [1, K].
