@@ -141,7 +141,7 @@ at::Tensor StochasticHybrid::compute_action(const at::Tensor& state) {
         // out rather than let 0 x NaN through. Rows with no finite weight stay NaN (the fallback).
         Eigen::Matrix<T, 1, Eigen::Dynamic> step = Eigen::Matrix<T, 1, Eigen::Dynamic>::Zero(m);
         for (int64_t k = 0; k < K; ++k)
-          if (w(t, k) != T(0) || !std::isfinite(w(t, k))) step += w(t, k) * (v.row(k) - plan.row(t));
+          if (w(t, k) != T(0)) step += w(t, k) * (v.row(k) - plan.row(t));  // NaN != 0: kept
         plan.row(t) += step;
       }
     }

@@ -68,7 +68,6 @@ RowMatrix<T> planner_weights(const RowMatrix<T>& scaled_returns, const RowMatrix
     for (Eigen::Index k = 0; k < scaled_returns.cols(); ++k)
       if (scaled_returns.col(k).allFinite() && (!log_density || log_density->col(k).allFinite()))
         valid.push_back(k);
-    RowMatrix<T> w = RowMatrix<T>::Zero(H, scaled_returns.cols());
     if (valid.empty())
       return RowMatrix<T>::Constant(H, scaled_returns.cols(), std::numeric_limits<T>::quiet_NaN());
     RowMatrix<T> j(H, static_cast<Eigen::Index>(valid.size())), d;
@@ -78,6 +77,7 @@ RowMatrix<T> planner_weights(const RowMatrix<T>& scaled_returns, const RowMatrix
       if (log_density) d.col(static_cast<Eigen::Index>(i)) = log_density->col(valid[i]);
     }
     const RowMatrix<T> wv = planner_weights<T>(j, log_density ? &d : nullptr, floor, min_ess, betas);
+    RowMatrix<T> w = RowMatrix<T>::Zero(H, scaled_returns.cols());
     for (size_t i = 0; i < valid.size(); ++i)
       w.col(valid[i]) = wv.col(static_cast<Eigen::Index>(i));
     return w;
