@@ -20,6 +20,14 @@ constexpr double kCarryClearance = 0.03;  // the block's bottom over the base's 
 constexpr double kRetreatHeight = 0.05;   // tool centre point over the stacked block's centre at the end
 constexpr double kOpen = 0.035;           // m: fingers well clear of a 5 cm block
 constexpr double kGraspBand = 0.012;      // m: tool centre point over the block's centre where it closes
+// Graded gripper commands (see nominal_action): over the last kGripRamp before the fingers switch, the
+// command moves from fully open (or closed) to kGripEdge short of the switch.
+constexpr double kGripRamp = 0.03;  // m
+constexpr double kGripEdge = 0.2;   // |command| where the switch happens
+// -1 far above the switching height, rising to -kGripEdge at it (height >= 0 over it).
+double graded(double height) {
+  return std::min(1.0, kGripEdge + (1.0 - kGripEdge) * std::max(height, 0.0) / kGripRamp);
+}
 
 // The observation's parts the phases are decided on.
 struct View {
@@ -94,6 +102,12 @@ Eigen::Vector4d StackExpert::nominal_action(const Eigen::VectorXd& o) {
     }
     case Phase::kDescend:
       vel = kGain * (v.block - v.ee);
+      // The environment's gripper acts on the command's sign only, so the expert is free to grade it. A
+      // command that jumps from -1 to +1 at the grasp height gives a cloned policy one "close" label per
+      // demonstration among dozens of "open" ones a few millimetres above, and its regressed command at the
+      // bottom stayed negative (an open hand at the grasp). Graded, the labels approach the switch as the
+      // tool approaches the block, and the sign change is where the expert closes.
+      grip = -graded(v.ee.z() - v.block.z() - kGraspBand);
       break;
     case Phase::kClose:
       vel.head<2>() = kGain * (v.block - v.ee).head<2>();
@@ -113,7 +127,8 @@ Eigen::Vector4d StackExpert::nominal_action(const Eigen::VectorXd& o) {
       vel.head<2>() = kGain * (v.base - v.block).head<2>();
       // Aim a little below the stacking height, so the block reaches the base at a few cm/s at most.
       vel.z() = std::max(kGain * (v.stack.z() - 0.004 - v.block.z()), -0.05);
-      grip = 1.0;
+      // Graded towards the release as the block comes down onto the base, for the same reason.
+      grip = graded(v.block.z() - v.stack.z());
       break;
     }
     case Phase::kRelease:

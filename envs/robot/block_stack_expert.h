@@ -2,7 +2,9 @@
 // between steps, so it recovers from its own noise and from a slipped block): approach over the block,
 // descend, close, lift, move over the base, descend until the block sits on it, open, retreat upwards.
 // Gaussian noise of a chosen size is added to every action component before clipping, so that
-// demonstrations cover the states around the nominal path.
+// demonstrations cover the states around the nominal path. The gripper command is graded (its sign is all
+// the environment reads): it approaches the switch as the tool descends to the grasp and as the block comes
+// down onto the base, so that a cloned policy can place the switch from a few demonstrations.
 #pragma once
 
 #include <cstdint>

@@ -254,6 +254,38 @@ TEST(BlockStack, ScriptedExpertLabelsItsStepsWithTheNoiselessAction) {
   EXPECT_FALSE(make_policy_for("zero", *env, 0)->intended_action().has_value());
 }
 
+TEST(BlockStack, ScriptedExpertGradesItsGripperCommandTowardsTheSwitch) {
+  // Noiseless: the descent's command rises from -1 towards the grasp and the lowering's falls from +1
+  // towards the release, staying on the side of the sign the environment acts on, then switches.
+  B env;
+  Eigen::VectorXd o = env.reset(4);
+  std::vector<std::pair<StackExpert::Phase, double>> run;
+  for (int t = 0; t < B::kSteps; ++t) {
+    run.emplace_back(StackExpert::phase(o), StackExpert::nominal_action(o)[3]);
+    o = env.step(StackExpert::nominal_action(o)).observation;
+  }
+  auto check_ramp = [&](StackExpert::Phase ramp, StackExpert::Phase next, double sign) {
+    std::vector<double> labels;
+    size_t i = 0;
+    while (i < run.size() && run[i].first != ramp)
+      ++i;
+    for (; i < run.size() && run[i].first == ramp; ++i)
+      labels.push_back(sign * run[i].second);
+    ASSERT_GE(labels.size(), 3u);
+    ASSERT_LT(i, run.size());
+    EXPECT_EQ(run[i].first, next);
+    EXPECT_EQ(sign * run[i].second, -1.0);  // switched: the other sign, fully
+    EXPECT_GT(labels.front(), 0.9);         // starts far from the switch
+    for (size_t k = 1; k < labels.size(); ++k) {
+      EXPECT_LE(labels[k], labels[k - 1]) << k;
+      EXPECT_GE(labels[k], 0.2) << k;
+    }
+    EXPECT_LT(labels.back(), 0.6);  // graded: close to the switch just before it
+  };
+  check_ramp(StackExpert::Phase::kDescend, StackExpert::Phase::kClose, -1.0);
+  check_ramp(StackExpert::Phase::kLower, StackExpert::Phase::kRelease, 1.0);
+}
+
 TEST(BlockStack, ScriptedExpertStacksInNineOfTenEpisodes) {
   auto env = make_env("block_stack");
   auto* stack = dynamic_cast<B*>(env.get());
