@@ -24,7 +24,7 @@ constexpr double kGraspBand = 0.012;      // m: tool centre point over the block
 // command moves from fully open (or closed) to kGripEdge short of the switch.
 constexpr double kGripRamp = 0.03;  // m
 constexpr double kGripEdge = 0.2;   // |command| where the switch happens
-// -1 far above the switching height, rising to -kGripEdge at it (height >= 0 over it).
+// The command's size at a height over the switching height: 1 from kGripRamp up, kGripEdge at (or below) it.
 double graded(double height) {
   return std::min(1.0, kGripEdge + (1.0 - kGripEdge) * std::max(height, 0.0) / kGripRamp);
 }

@@ -261,8 +261,9 @@ TEST(BlockStack, ScriptedExpertGradesItsGripperCommandTowardsTheSwitch) {
   Eigen::VectorXd o = env.reset(4);
   std::vector<std::pair<StackExpert::Phase, double>> run;
   for (int t = 0; t < B::kSteps; ++t) {
-    run.emplace_back(StackExpert::phase(o), StackExpert::nominal_action(o)[3]);
-    o = env.step(StackExpert::nominal_action(o)).observation;
+    const Eigen::Vector4d a = StackExpert::nominal_action(o);
+    run.emplace_back(StackExpert::phase(o), a[3]);
+    o = env.step(a).observation;
   }
   auto check_ramp = [&](StackExpert::Phase ramp, StackExpert::Phase next, double sign) {
     std::vector<double> labels;
