@@ -43,7 +43,9 @@ Config make_train_config() {
           "eval.variants", "",
           "diagnostic: ';'-separated sets of space-separated key=value overrides; each set is one more "
           "evaluation of the method's controller built with those overrides, logged as "
-          "eval/variant<i>_return_mean. The variants run with the random number generator's state "
+          "eval/variant<i>_return_mean (imitation loop: imitation/variant<i>_return_mean and "
+          "_success_rate over the imitation.eval_episodes test episodes). The variants run with the random "
+          "number generator's state "
           "restored afterwards, so they change none of the run's other numbers")
       .add_int("checkpoint.every", 5000, "agent steps between checkpoints (written at the next episode end)",
                1, big)

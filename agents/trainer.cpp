@@ -499,6 +499,18 @@ struct Trainer::Impl {
     }
   }
 
+  // imitation.eval_episodes test episodes of `ctrl` from fixed start states (not stored): a success rate per
+  // demonstration count needs more than Alg. 3's one test episode.
+  std::vector<EpisodeStats> imitation_test_episodes(Controller& ctrl, int test_steps) {
+    std::vector<EpisodeStats> out;
+    ControllerPolicy p(ctrl, [this](Controller& c) { tell_interactions(c); });
+    for (int64_t e = 0; e < config.get_int("imitation.eval_episodes"); ++e)
+      out.push_back(run_episode(
+          *eval_env, p, derive_seed(seed, kImitationEval) ^ static_cast<uint64_t>(e), {}, [&] { p.reset(); },
+          test_steps));
+    return out;
+  }
+
   // One iteration: a demonstration into D_exp and D, every learner's updates, then a test episode of the
   // method's controller into D only. The policy alone and the expert are scored from the test episode's
   // start state (not stored), so the three returns of an iteration compare like with like.
@@ -555,16 +567,16 @@ struct Trainer::Impl {
       expert_return = e.episode_return;
       expert_success = e.success;
     }
-    // Extra test episodes of the method's controller from fixed start states (not stored): a success rate
-    // per demonstration count needs more than the one test episode.
-    std::vector<EpisodeStats> extra;
-    const int64_t eval_episodes = config.get_int("imitation.eval_episodes");
-    if (eval_episodes > 0) {
-      ControllerPolicy p(*controller, [this](Controller& c) { tell_interactions(c); });
-      for (int64_t e = 0; e < eval_episodes; ++e)
-        extra.push_back(run_episode(
-            *eval_env, p, derive_seed(seed, kImitationEval) ^ static_cast<uint64_t>(e), {},
-            [&] { p.reset(); }, test_steps));
+    const std::vector<EpisodeStats> extra = imitation_test_episodes(*controller, test_steps);
+    // eval.variants: the same test episodes with the controller built otherwise, on the same networks, with
+    // the generator's state put back so that the run is unchanged.
+    std::vector<std::pair<std::string, std::vector<EpisodeStats>>> variant_episodes;
+    if (!variant_evaluators.empty() && !extra.empty()) {
+      at::Generator generator = at::detail::getDefaultCPUGenerator();
+      const at::Tensor state = generator.get_state();
+      for (auto& [label, ctrl] : variant_evaluators)
+        variant_episodes.emplace_back(label, imitation_test_episodes(*ctrl, test_steps));
+      generator.set_state(state);
     }
 
     ++iterations;
@@ -592,6 +604,12 @@ struct Trainer::Impl {
       log->log(step, "imitation/eval_return_mean", s.mean_return);
       log->log(step, "imitation/eval_return_std", s.std_return);
       if (s.success_rate) log->log(step, "imitation/eval_success_rate", *s.success_rate);
+    }
+    for (const auto& [label, episodes] : variant_episodes) {
+      const ReturnSummary s = summarize(episodes);
+      log->log(step, "imitation/" + label + "_return_mean", s.mean_return);
+      log->log(step, "imitation/" + label + "_return_std", s.std_return);
+      if (s.success_rate) log->log(step, "imitation/" + label + "_success_rate", *s.success_rate);
     }
     // Not train/agent_steps: that tag counts an online run's progress (the sweep engine reads it).
     log->log(step, "imitation/agent_steps", static_cast<double>(agent_steps));

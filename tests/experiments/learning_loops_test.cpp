@@ -134,7 +134,7 @@ TEST(LearningLoops, HybridImitationLogsItsTagsAndResumesExactly) {
     EXPECT_EQ(tags.at(tag).size(), 3u) << tag;
   }
   for (double f : tags.at("imitation/fallbacks"))
-    EXPECT_LE(f, 30.0);  // steps of the 30-step test episode only
+    EXPECT_LE(f, 30.0);                                // steps of the 30-step test episode only
   EXPECT_FALSE(tags.count("loss/critic"));             // no SAC in imitation
   EXPECT_FALSE(tags.count("imitation/test_success"));  // the pendulum has no success criterion
   // The planner's weight diagnostics of each test episode: an effective sample size in [1, K].
@@ -163,6 +163,36 @@ TEST(LearningLoops, HybridImitationLogsItsTagsAndResumesExactly) {
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_EQ(by_tag(killed + "/scalars.csv").at("imitation/demonstrations"),
             (std::vector<double>{1, 2, 3, 4}));
+}
+
+TEST(LearningLoops, ImitationEvalVariantsChangeNoOtherNumber) {
+  const std::string expert = write_pendulum_expert(fresh_dir("imitation_expert3"));
+  const std::string args =
+      imitation_args("hybrid-imitation", expert) + " imitation.iterations=2" + " imitation.eval_episodes=2";
+  const std::string plain = fresh_dir("imitation_no_variants"), varied = fresh_dir("imitation_variants");
+  Result r = run(kTrain + args + " --out " + plain);
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run(kTrain + args + " \"eval.variants=planner.lambda=1000; planner.horizon=2\" --out " + varied);
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::vector<std::string> others;
+  std::map<std::string, std::vector<double>> variant;
+  for (const auto& row : ScalarLogger::read(varied + "/scalars.csv")) {
+    if (row.tag.rfind("imitation/variant", 0) == 0)
+      variant[row.tag].push_back(row.value);
+    else if (row.tag.rfind("time/", 0) != 0)
+      others.push_back(fmt::format("{},{},{:.17g}", row.step, row.tag, row.value));
+  }
+  EXPECT_EQ(others, comparable_rows(plain + "/scalars.csv"));
+  const auto tags = by_tag(plain + "/scalars.csv");
+  ASSERT_EQ(tags.at("imitation/eval_return_mean").size(), 2u);
+  for (const char* tag : {"imitation/variant0_return_mean", "imitation/variant0_return_std",
+                          "imitation/variant1_return_mean", "imitation/variant1_return_std"}) {
+    ASSERT_TRUE(variant.count(tag)) << tag;
+    EXPECT_EQ(variant.at(tag).size(), 2u) << tag;
+  }
+  EXPECT_EQ(variant.size(), 4u);  // the pendulum has no success criterion
+  // A 2-step horizon plans differently from the default on the same networks.
+  EXPECT_NE(variant.at("imitation/variant1_return_mean"), tags.at("imitation/eval_return_mean"));
 }
 
 TEST(LearningLoops, RobotTasksLogTheirSuccess) {
