@@ -28,6 +28,13 @@ constexpr double kGripEdge = 0.2;   // |command| where the switch happens
 double graded(double height) {
   return std::min(1.0, kGripEdge + (1.0 - kGripEdge) * std::max(height, 0.0) / kGripRamp);
 }
+// Carrying (see nominal_action): the block is "over the base" within kOverBase of its axis and "away" from
+// kAwayFromBase on; it moves sideways at full speed once within kClearBand of the carrying height, not at
+// all from 3 kClearBand under it.
+constexpr double kOverBase = 0.004;      // m
+constexpr double kAwayFromBase = 0.02;   // m
+constexpr double kClearBand = 0.01;      // m
+double ramp(double x) { return std::clamp(x, 0.0, 1.0); }
 
 // The observation's parts the phases are decided on.
 struct View {
@@ -67,12 +74,10 @@ std::string StackExpert::describe() const {
 StackExpert::Phase StackExpert::phase(const Eigen::VectorXd& o) {
   const View v = view(o);
   if (v.held) {
+    // Names for the parts of one velocity field (nominal_action), not switches of the action.
     if (on_base(v)) return Phase::kRelease;
-    const Eigen::Vector2d e = v.base.head<2>() - v.block.head<2>();
-    const double carry_z = v.stack.z() + kCarryClearance;
-    if (e.norm() < 0.004) return Phase::kLower;
-    // Up first: moving sideways low would drag the block or knock it against the base.
-    if (v.block.z() < carry_z - 0.01 && e.norm() > 0.02) return Phase::kLift;
+    if ((v.base - v.block).head<2>().norm() < kAwayFromBase) return Phase::kLower;
+    if (v.block.z() < v.stack.z() + kCarryClearance - kClearBand) return Phase::kLift;
     return Phase::kMove;
   }
   if (on_base(v) || ((v.block.head<2>() - v.base.head<2>()).norm() < B::kPlaceXY &&
@@ -114,21 +119,29 @@ Eigen::Vector4d StackExpert::nominal_action(const Eigen::VectorXd& o) {
       grip = 1.0;
       break;
     case Phase::kLift:
-      vel.z() = kGain * (v.stack.z() + kCarryClearance - v.block.z());
-      grip = 1.0;
-      break;
-    case Phase::kMove: {
-      const Eigen::Vector3d over = v.stack + Eigen::Vector3d(0, 0, kCarryClearance);
-      vel = kGain * (over - v.block);
-      grip = 1.0;
-      break;
-    }
+    case Phase::kMove:
     case Phase::kLower: {
-      vel.head<2>() = kGain * (v.base - v.block).head<2>();
+      // One velocity field, continuous in the state, for lift, move and lower: a cloned policy smooths
+      // switches between them, and with switches it moved sideways before the block was up and lowered it
+      // short of the base, where the expert's data say "lower" only within 4 mm of the base's axis.
+      // How far from over the base: 1 away from it (carry at the carrying height), 0 over it (lower onto it).
+      const Eigen::Vector2d e = (v.base - v.block).head<2>();
+      const double away = ramp((e.norm() - kOverBase) / (kAwayFromBase - kOverBase));
+      const double carry_z = v.stack.z() + kCarryClearance;
       // Aim a little below the stacking height, so the block reaches the base at a few cm/s at most.
-      vel.z() = std::max(kGain * (v.stack.z() - 0.004 - v.block.z()), -0.05);
-      // Graded towards the release as the block comes down onto the base, for the same reason.
-      grip = graded(v.block.z() - v.stack.z());
+      const double target_z = v.stack.z() - 0.004 + (kCarryClearance + 0.004) * away;
+      vel.z() = std::max(kGain * (target_z - v.block.z()), -0.05);
+      // Sideways only as the block clears the base's height (moving low would drag it or knock it against
+      // the base); over the base, always, to centre it.
+      // The factor applies after the speed limit, so that the command itself (not only a saturated
+      // velocity) rises with the height.
+      const double clear = ramp((v.block.z() - (carry_z - 3 * kClearBand)) / (2 * kClearBand));
+      Eigen::Vector2d sideways = kGain * e;
+      if (sideways.norm() > B::kSpeed) sideways *= B::kSpeed / sideways.norm();
+      vel.head<2>() = std::max(clear, 1.0 - away) * sideways;
+      // Graded towards the release as the block comes down onto the base, for the same reason as the
+      // descent's command; fully closed while away from the base.
+      grip = 1.0 - (1.0 - graded(v.block.z() - v.stack.z())) * (1.0 - away);
       break;
     }
     case Phase::kRelease:

@@ -5,6 +5,7 @@
 // demonstrations cover the states around the nominal path. The gripper command is graded (its sign is all
 // the environment reads): it approaches the switch as the tool descends to the grasp and as the block comes
 // down onto the base, so that a cloned policy can place the switch from a few demonstrations.
+// Lifting, carrying and lowering are one velocity field, continuous in the state, for the same reason.
 #pragma once
 
 #include <cstdint>
