@@ -48,7 +48,8 @@ struct LearnerContext {
   int64_t state_dim = 0, action_dim = 0;
   uint64_t seed = 0;
   LearnedModels& models;
-  // The environment's declared observation ranges, if any (policy.normalize_inputs needs them).
+  // The environment's declared observation ranges, if any (policy.normalize_inputs and
+  // model.normalize_inputs need them).
   std::optional<ObservationScale> observation_scale = std::nullopt;
 };
 

@@ -44,6 +44,20 @@ std::vector<std::string> learner_names() {
   return names;
 }
 
+namespace {
+// A network's options get the environment's declared observation ranges as their input normalisation.
+template <typename Options>
+void set_input_normalisation(const LearnerContext& context, const char* key, Options& o) {
+  check(context.observation_scale.has_value(),
+        "{}=true: environment '{}' declares no observation ranges to normalise by", key,
+        context.config.get_string("env"));
+  const ObservationScale& s = *context.observation_scale;
+  o.input_offset.assign(s.offset.data(), s.offset.data() + s.offset.size());
+  o.input_scale.assign(s.scale.data(), s.scale.data() + s.scale.size());
+  o.input_reference.assign(s.reference.data(), s.reference.data() + s.reference.size());
+}
+}  // namespace
+
 GaussianPolicy& config_policy(LearnerContext& context) {
   if (!context.models.policy) {
     const Config& c = context.config;
@@ -52,15 +66,8 @@ GaussianPolicy& config_policy(LearnerContext& context) {
     po.action_dim = context.action_dim;
     po.hidden = c.get_int_list("policy.hidden");
     po.mean_activation = parse_activation(c.get_string("policy.activation"));
-    if (c.get_bool("policy.normalize_inputs")) {
-      check(context.observation_scale.has_value(),
-            "policy.normalize_inputs=true: environment '{}' declares no observation ranges to normalise by",
-            c.get_string("env"));
-      const ObservationScale& s = *context.observation_scale;
-      po.input_offset.assign(s.offset.data(), s.offset.data() + s.offset.size());
-      po.input_scale.assign(s.scale.data(), s.scale.data() + s.scale.size());
-      po.input_reference.assign(s.reference.data(), s.reference.data() + s.reference.size());
-    }
+    if (c.get_bool("policy.normalize_inputs"))
+      set_input_normalisation(context, "policy.normalize_inputs", po);
     context.models.policy = GaussianPolicy(po);
   }
   return context.models.policy;
@@ -103,11 +110,18 @@ std::unique_ptr<Learner> make_model_learner(LearnerContext& context) {
   const Config& c = context.config;
   LearnedModels& m = context.models;
   const int64_t n = context.state_dim, a = context.action_dim;
+  const bool normalize = c.get_bool("model.normalize_inputs");
   if (!m.dynamics) {
-    m.dynamics = DynamicsModel(DynamicsModelOptions{n, a, c.get_int("model.hidden"),
-                                                    parse_activation(c.get_string("model.activation"))});
+    DynamicsModelOptions o{n, a, c.get_int("model.hidden"),
+                           parse_activation(c.get_string("model.activation"))};
+    if (normalize) set_input_normalisation(context, "model.normalize_inputs", o);
+    m.dynamics = DynamicsModel(o);
   }
-  if (!m.reward) m.reward = RewardModel(RewardModelOptions{n, a, c.get_int("model.reward_hidden")});
+  if (!m.reward) {
+    RewardModelOptions o{n, a, c.get_int("model.reward_hidden")};
+    if (normalize) set_input_normalisation(context, "model.normalize_inputs", o);
+    m.reward = RewardModel(o);
+  }
   ModelLearnerOptions mo;
   mo.lr = c.get_double("model.lr");
   mo.reward_gamma = c.get_double("model.reward_gamma");

@@ -88,6 +88,9 @@ Config make_train_config() {
                   "discount of the reward model's TD target (0: plain regression)", 0.0, 1.0)
       .add_double("model.reward_weight", 0.5, "weight of the reward TD loss in the joint model loss", 0.0,
                   1000.0)
+      .add_bool("model.normalize_inputs", false,
+                "the dynamics and reward models see the state as policy.normalize_inputs shows it to the "
+                "policy (the environment's declared observation ranges); the dynamics' residual stays raw")
       .add_int_list("policy.hidden", {128}, "policy hidden layer widths (both heads)", 1, 100000)
       .add_string("policy.activation", "sin", "policy mean head hidden activation", {"sin", "relu"})
       .add_bool("policy.normalize_inputs", false,

@@ -156,6 +156,9 @@ ModelForward::ModelForward(DynamicsModel dynamics, RewardModel reward)
   hr_ = reward_->options().hidden;
   check(reward_->options().state_dim == n_ && reward_->options().action_dim == m_,
         "dynamics and reward models disagree on sizes");
+  // Their first layers read one input buffer.
+  check(dynamics_->normaliser().same_as(reward_->normaliser()),
+        "dynamics and reward models disagree on their input normalisation");
 }
 
 void ModelForward::prepare(int64_t batch) {
@@ -170,6 +173,10 @@ void ModelForward::prepare(int64_t batch) {
     hidden_d_ = hidden1_.narrow(1, 0, hd_);
     hidden_r_ = hidden1_.narrow(1, hd_, hr_);
     hidden2_ = torch::empty({batch, hr_}, opts);
+    if (dynamics_->normaliser().enabled()) {
+      normalisation_ = dynamics_->normaliser().tensors(opts);
+      if (normalisation_.map_t.defined()) relative_ = torch::empty({batch, n_}, opts);
+    }
   }
   dispatch_floating(w, [&](auto tag) {
     using T = decltype(tag);
@@ -187,8 +194,20 @@ void ModelForward::step(const at::Tensor& states, const at::Tensor& actions, at:
   dispatch_floating(input_, [&](auto tag) {
     using T = decltype(tag);
     auto in = row_map<T>(input_);
-    in.leftCols(n_) = row_map<T>(states);
     in.rightCols(m_) = row_map<T>(actions);
+    if (!normalisation_.offset.defined()) {
+      in.leftCols(n_) = row_map<T>(states);
+      return;
+    }
+    // x = (s M^T - offset) / scale: one small product for the references, then one Eigen pass.
+    if (relative_.defined()) at::mm_out(relative_, states, normalisation_.map_t);
+    using Row = Eigen::Array<T, 1, Eigen::Dynamic>;
+    const Eigen::Map<const Row> offset(normalisation_.offset.data_ptr<T>(), n_),
+        inv_scale(normalisation_.inv_scale.data_ptr<T>(), n_);
+    in.leftCols(n_) =
+        ((row_map<T>(relative_.defined() ? relative_ : states).array().rowwise() - offset).rowwise() *
+         inv_scale)
+            .matrix();
   });
   at::mm_out(hidden1_, input_, w1_);
   bias_activate(hidden_d_, dynamics_->fc1->bias, dynamics_->options().activation);

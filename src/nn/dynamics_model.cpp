@@ -14,18 +14,25 @@ namespace hlt {
 DynamicsModelImpl::DynamicsModelImpl(const DynamicsModelOptions& o) : options_(o) {
   check(o.state_dim > 0 && o.action_dim > 0 && o.hidden > 0,
         "DynamicsModel needs positive sizes, got n={} m={} h={}", o.state_dim, o.action_dim, o.hidden);
+  normaliser_ =
+      InputNormaliser(o.state_dim, o.input_offset, o.input_scale, o.input_reference, "DynamicsModel");
   fc1 = register_module("fc1", torch::nn::Linear(o.state_dim + o.action_dim, o.hidden));
   fc2 = register_module("fc2", torch::nn::Linear(o.hidden, o.state_dim));
   log_std_param = register_parameter("log_std", torch::zeros({1, o.state_dim}));
 }
 
 torch::Tensor DynamicsModelImpl::forward(const torch::Tensor& state, const torch::Tensor& action) {
-  torch::Tensor h = fc1(torch::cat({state, action}, -1));
+  torch::Tensor h = fc1(torch::cat({normaliser_.apply(state), action}, -1));
   return state + fc2(activate(h, options_.activation));
 }
 
 DenseChain DynamicsModelImpl::chain() const {
-  return DenseChain{{fc1, fc2}, options_.activation, /*tanh_output=*/false, /*residual=*/true};
+  // The residual adds the chain's raw state input; the normalisation is folded into a copy of the first
+  // layer.
+  return DenseChain{{normaliser_.enabled() ? normaliser_.fold_into(fc1) : fc1, fc2},
+                    options_.activation,
+                    /*tanh_output=*/false,
+                    /*residual=*/true};
 }
 
 void DynamicsModelImpl::extend_domain(const torch::Tensor& states) {
@@ -94,6 +101,7 @@ double DynamicsModelImpl::loss_with_gradient(const torch::Tensor& state, const t
     x.leftCols(n) = row_map<T>(state);
     x.rightCols(m) = row_map<T>(action);
   });
+  normaliser_.apply_in_place(x_);
   dense_forward(h_, x_, fc1->weight, fc1->bias);
   activate_out(act_, h_, options_.activation);
   at::mm_out(mean_, act_, fc2->weight.t());

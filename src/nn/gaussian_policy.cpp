@@ -43,49 +43,19 @@ GaussianPolicyImpl::GaussianPolicyImpl(const GaussianPolicyOptions& o) : options
   check(!o.hidden.empty(), "GaussianPolicy needs at least one hidden layer");
   for (int64_t h : o.hidden)
     check(h > 0, "GaussianPolicy hidden sizes must be positive");
-  check(o.input_offset.size() == o.input_scale.size() &&
-            (o.input_scale.empty() || static_cast<int64_t>(o.input_scale.size()) == o.state_dim),
-        "GaussianPolicy input normalisation needs {} offsets and scales, got {} and {}", o.state_dim,
-        o.input_offset.size(), o.input_scale.size());
-  if (!o.input_scale.empty()) {
-    for (size_t i = 0; i < o.input_scale.size(); ++i)
-      check(o.input_scale[i] > 0 && std::isfinite(o.input_scale[i]) && std::isfinite(o.input_offset[i]),
-            "GaussianPolicy input normalisation: component {} has offset {} and scale {} (scales must be "
-            "finite and > 0)",
-            i, o.input_offset[i], o.input_scale[i]);
-    input_offset_ = torch::tensor(o.input_offset, torch::kFloat64);
-    input_inv_scale_ = 1.0 / torch::tensor(o.input_scale, torch::kFloat64);
-  }
-  if (!o.input_reference.empty()) {
-    check(!o.input_scale.empty() && static_cast<int64_t>(o.input_reference.size()) == o.state_dim,
-          "GaussianPolicy input references need the normalisation and {} entries, got {}", o.state_dim,
-          o.input_reference.size());
-    // x = M s with M = I - (1 at (i, r(i))); stored transposed, for row-major batches s M^T.
-    input_map_t_ = torch::eye(o.state_dim, torch::kFloat64);
-    for (int64_t i = 0; i < o.state_dim; ++i) {
-      const int64_t r = o.input_reference[static_cast<size_t>(i)];
-      check(r == -1 || (r >= 0 && r < o.state_dim && r != i),
-            "GaussianPolicy input reference of component {} is {}: expected -1 or another component", i, r);
-      if (r >= 0) input_map_t_[r][i] = -1.0;
-    }
-  }
+  normaliser_ =
+      InputNormaliser(o.state_dim, o.input_offset, o.input_scale, o.input_reference, "GaussianPolicy");
   mean_layers = register_module("mean", make_mlp(o.state_dim, o.hidden, o.action_dim, o.init_scale));
   log_std_layers = register_module("log_std", make_mlp(o.state_dim, o.hidden, o.action_dim, o.init_scale));
 }
 
 InputNormalisation GaussianPolicyImpl::input_normalisation(const torch::TensorOptions& options) const {
   check(normalizes_inputs(), "GaussianPolicy: input_normalisation() of a policy without normalisation");
-  const auto opts = options.requires_grad(false);
-  InputNormalisation n{input_offset_.to(opts), input_inv_scale_.to(opts), {}};
-  if (input_map_t_.defined()) n.map_t = input_map_t_.to(opts);
-  return n;
+  return normaliser_.tensors(options);
 }
 
 torch::Tensor GaussianPolicyImpl::normalize(const torch::Tensor& state) const {
-  if (!normalizes_inputs()) return state;
-  const InputNormalisation n = input_normalisation(state.options());
-  const torch::Tensor relative = n.map_t.defined() ? torch::matmul(state, n.map_t) : state;
-  return (relative - n.offset) * n.inv_scale;
+  return normaliser_.apply(state);
 }
 
 std::pair<torch::Tensor, torch::Tensor> GaussianPolicyImpl::forward(const torch::Tensor& state) {
@@ -104,26 +74,9 @@ DenseChain GaussianPolicyImpl::mean_chain() const {
   DenseChain chain{{}, options_.mean_activation, /*tanh_output=*/true};
   for (const auto& layer : *mean_layers)
     chain.layers.push_back(torch::nn::Linear(std::dynamic_pointer_cast<torch::nn::LinearImpl>(layer)));
-  if (normalizes_inputs()) {
-    // Folded into the first layer: W ((M s - c) / d) + b = ((W / d) M) s + (b - W (c / d)). A new layer
-    // (the chain holds its layers): gradients reach the state, not the policy's own first layer.
-    const auto& first = chain.layers.front();
-    torch::NoGradGuard no_grad;
-    const InputNormalisation n = input_normalisation(first->weight.options());
-    const torch::Tensor& offset = n.offset;
-    const torch::Tensor& inv = n.inv_scale;
-    // A Linear draws its initial weights from the default generator: put its state back, so that asking
-    // for the chain leaves every later random draw as it was.
-    at::Generator generator = at::detail::getDefaultCPUGenerator();
-    const at::Tensor generator_state = generator.get_state();
-    torch::nn::Linear folded(torch::nn::LinearOptions(first->weight.size(1), first->weight.size(0)));
-    generator.set_state(generator_state);
-    folded->to(first->weight.scalar_type());
-    const torch::Tensor scaled = first->weight * inv;
-    folded->weight.copy_(n.map_t.defined() ? torch::matmul(scaled, n.map_t.t()) : scaled);
-    folded->bias.copy_(first->bias - torch::mv(first->weight, offset * inv));
-    chain.layers.front() = folded;
-  }
+  // Folded into the first layer, a new one (the chain holds its layers): gradients reach the state, not the
+  // policy's own first layer.
+  if (normalizes_inputs()) chain.layers.front() = normaliser_.fold_into(chain.layers.front());
   return chain;
 }
 

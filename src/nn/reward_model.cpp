@@ -11,19 +11,20 @@ namespace hlt {
 RewardModelImpl::RewardModelImpl(const RewardModelOptions& o) : options_(o) {
   check(o.state_dim > 0 && o.action_dim > 0 && o.hidden > 0,
         "RewardModel needs positive sizes, got n={} m={} h={}", o.state_dim, o.action_dim, o.hidden);
+  normaliser_ = InputNormaliser(o.state_dim, o.input_offset, o.input_scale, o.input_reference, "RewardModel");
   fc1 = register_module("fc1", torch::nn::Linear(o.state_dim + o.action_dim, o.hidden));
   fc2 = register_module("fc2", torch::nn::Linear(o.hidden, o.hidden));
   fc3 = register_module("fc3", torch::nn::Linear(o.hidden, 1));
 }
 
 torch::Tensor RewardModelImpl::forward(const torch::Tensor& state, const torch::Tensor& action) {
-  torch::Tensor h = torch::relu(fc1(torch::cat({state, action}, -1)));
+  torch::Tensor h = torch::relu(fc1(torch::cat({normaliser_.apply(state), action}, -1)));
   h = torch::relu(fc2(h));
   return fc3(h);
 }
 
 DenseChain RewardModelImpl::chain() const {
-  return DenseChain{{fc1, fc2, fc3}, Activation::kRelu};
+  return DenseChain{{normaliser_.enabled() ? normaliser_.fold_into(fc1) : fc1, fc2, fc3}, Activation::kRelu};
 }
 
 torch::Tensor RewardModelImpl::td_loss(const torch::Tensor& state, const torch::Tensor& action,
@@ -66,6 +67,7 @@ double RewardModelImpl::td_loss_with_gradient(const torch::Tensor& state, const 
       auto xm = row_map<T>(sized(x, {batch, n + m}));
       xm.leftCols(n) = row_map<T>(s);
       xm.rightCols(m) = row_map<T>(a);
+      normaliser_.apply_in_place(x);
       dense_forward(h1, x, fc1->weight, fc1->bias);
       row_map<T>(h1) = row_map<T>(h1).cwiseMax(T(0));
       dense_forward(h2, h1, fc2->weight, fc2->bias);

@@ -4,6 +4,7 @@
 #include <torch/torch.h>
 
 #include <cmath>
+#include <functional>
 
 #include "hlt/nn/batched_forward.h"
 #include "hlt/nn/dense_chain.h"
@@ -411,6 +412,97 @@ TEST(HandWrittenGradients, RewardTdLossMatchesAutograd) {
     EXPECT_NEAR(rew->td_loss_with_gradient(s, a, r, s2, a2, done, gamma, 0.5), loss.item<double>(), 1e-12);
     expect_written_gradients(*rew, expected);
   }
+}
+
+// The learned models' input normalisation: the same networks on x(s) = (s relative to its references -
+// offset) / scale in every way they are evaluated (module forward, the model learner's hand-written passes,
+// the deterministic planner's autograd chains, the planners' batched pass), the dynamics' residual adding
+// the raw state.
+TEST(LearnedModels, InputNormalisationIsTheNetworkOnScaledStates) {
+  torch::manual_seed(7);
+  const int64_t n = 4, m = 2, B = 5;
+  DynamicsModelOptions dop{n, m, 12, Activation::kRelu};
+  RewardModelOptions rop{n, m, 10};
+  DynamicsModel dyn_raw(dop);
+  RewardModel rew_raw(rop);
+  const std::vector<double> offset = {0.5, 0.0, 0.1, 0.0}, scale = {0.05, 0.01, 0.2, 0.5};
+  const std::vector<int64_t> reference = {-1, 0, -1, 1};  // s1 - s0, and s3 - s1 (the raw s1)
+  dop.input_offset = rop.input_offset = offset;
+  dop.input_scale = rop.input_scale = scale;
+  dop.input_reference = rop.input_reference = reference;
+  DynamicsModel dyn(dop);
+  RewardModel rew(rop);
+  for (torch::nn::Module* mod :
+       std::initializer_list<torch::nn::Module*>{dyn_raw.get(), rew_raw.get(), dyn.get(), rew.get()})
+    mod->to(torch::kFloat64);
+  {
+    torch::NoGradGuard g;
+    for (auto [from, to] : {std::pair<torch::nn::Module*, torch::nn::Module*>{dyn_raw.get(), dyn.get()},
+                            std::pair<torch::nn::Module*, torch::nn::Module*>{rew_raw.get(), rew.get()}}) {
+      auto f = from->parameters(), t = to->parameters();
+      ASSERT_EQ(f.size(), t.size());
+      for (size_t i = 0; i < f.size(); ++i)
+        t[i].copy_(f[i]);
+    }
+  }
+  const auto s =
+      (torch::tensor({0.5, 0.51, 0.0, 0.6}, torch::kFloat64) + 0.02 * torch::randn({B, n}, torch::kFloat64))
+          .contiguous();
+  const auto a = (torch::rand({B, m}, torch::kFloat64) * 2 - 1).contiguous();
+  const auto s2 = (s + 0.01 * torch::randn({B, n}, torch::kFloat64)).contiguous();
+  const auto a2 = (torch::rand({B, m}, torch::kFloat64) * 2 - 1).contiguous();
+  const auto r = torch::randn({B, 1}, torch::kFloat64);
+  const auto done = (torch::rand({B, 1}, torch::kFloat64) < 0.3).to(torch::kFloat64);
+  auto by_hand = [&](const torch::Tensor& x) {
+    const auto c = x.unbind(1);
+    const auto rel = torch::stack({c[0], c[1] - c[0], c[2], c[3] - c[1]}, 1);
+    return (rel - torch::tensor(offset, torch::kFloat64)) / torch::tensor(scale, torch::kFloat64);
+  };
+  // Module forward: the raw model's network (its forward less its residual) on x(s), plus the raw state.
+  const auto x = by_hand(s);
+  EXPECT_TRUE(torch::allclose(dyn->forward(s, a), s + (dyn_raw->forward(x, a) - x), 1e-12, 1e-12));
+  EXPECT_TRUE(torch::allclose(rew->forward(s, a), rew_raw->forward(x, a), 1e-12, 1e-12));
+  EXPECT_FALSE(torch::allclose(rew->forward(s, a), rew_raw->forward(s, a), 1e-6, 1e-6));
+  // The hand-written loss passes against autograd through the normalised forward.
+  const torch::Tensor dyn_loss = dyn->loss(s, a, s2);
+  const auto dyn_expected = autograd_gradients(*dyn, dyn_loss);
+  EXPECT_NEAR(dyn->loss_with_gradient(s, a, s2), dyn_loss.item<double>(), 1e-12);
+  expect_written_gradients(*dyn, dyn_expected);
+  const torch::Tensor rew_loss = rew->td_loss(s, a, r, s2, a2, done, 0.9);
+  const auto rew_expected = autograd_gradients(*rew, rew_loss);
+  EXPECT_NEAR(rew->td_loss_with_gradient(s, a, r, s2, a2, done, 0.9), rew_loss.item<double>(), 1e-12);
+  expect_written_gradients(*rew, rew_expected);
+  // The chains: values, and gradients with respect to state and action through the normalisation.
+  for (auto [chain, forward] :
+       {std::pair<DenseChain, std::function<torch::Tensor(const torch::Tensor&, const torch::Tensor&)>>{
+            dyn->chain(), [&](const torch::Tensor&u, const torch::Tensor&v) { return dyn->forward(u, v); }},
+        std::pair<DenseChain, std::function<torch::Tensor(const torch::Tensor&, const torch::Tensor&)>>{
+            rew->chain(),
+            [&](const torch::Tensor&u, const torch::Tensor&v) { return rew->forward(u, v); }}}) {
+    const auto sc = s.clone().requires_grad_(true), ac = a.clone().requires_grad_(true);
+    const auto sr = s.clone().requires_grad_(true), ar = a.clone().requires_grad_(true);
+    const auto y = dense_chain(chain, {sc, ac}), y_ref = forward(sr, ar);
+    EXPECT_TRUE(torch::allclose(y, y_ref, 1e-12, 1e-12));
+    const auto w = torch::randn(y.sizes(), torch::kFloat64);
+    const auto g = torch::autograd::grad({(y * w).sum()}, {sc, ac});
+    const auto g_ref = torch::autograd::grad({(y_ref * w).sum()}, {sr, ar});
+    EXPECT_TRUE(torch::allclose(g[0], g_ref[0], 1e-9, 1e-9));
+    EXPECT_TRUE(torch::allclose(g[1], g_ref[1], 1e-9, 1e-9));
+  }
+  // The planners' batched pass.
+  ModelForward mf(dyn, rew);
+  mf.prepare(B);
+  auto next = torch::empty({B, n}, torch::kFloat64), rewards = torch::empty({B}, torch::kFloat64);
+  mf.step(s, a, next, &rewards);
+  EXPECT_TRUE(torch::allclose(next, dyn->forward(s, a), 1e-12, 1e-12));
+  EXPECT_TRUE(torch::allclose(rewards, rew->forward(s, a).squeeze(1), 1e-12, 1e-12));
+  // One pass reads both models' first layers from one input: their normalisations must agree.
+  EXPECT_THROW(ModelForward(dyn, rew_raw), Error);
+  // Bad normalisations are errors, as for the policy.
+  dop.input_scale = {0.05, 0.0, 0.2, 0.5};
+  EXPECT_THROW(DynamicsModel{dop}, Error);
+  rop.input_reference = {-1, 1, -1, 1};
+  EXPECT_THROW(RewardModel{rop}, Error);
 }
 
 }  // namespace

@@ -99,6 +99,10 @@ class ModelForward {
   int64_t n_ = 0, m_ = 0, hd_ = 0, hr_ = 0;
   at::Tensor w1_, w2d_, w2r_;  // transposed weights: both first layers side by side, the second layers
   at::Tensor input_, hidden1_, hidden_d_, hidden_r_, hidden2_;  // buffers [batch, width] and column views
+  // With input normalisation (both models share it): its tensors in the weights' dtype, and the states
+  // relative to their references [batch, n] (with references only).
+  InputNormalisation normalisation_;
+  at::Tensor relative_;
 };
 
 }  // namespace hlt

@@ -1,8 +1,10 @@
-// hlt::DynamicsModel: the learned one-step model s' = s + W2 act(W1 [s, a] + b1) + b2 (paper appendix,
-// "Models"), with a learned state-independent log-std used only by its Gaussian negative log-likelihood.
+// hlt::DynamicsModel: the learned one-step model s' = s + W2 act(W1 [x(s), a] + b1) + b2 (paper appendix,
+// "Models"; x(s) = s unless the options ask for input normalisation), with a learned state-independent
+// log-std used only by its Gaussian negative log-likelihood.
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include <torch/nn/module.h>
 
@@ -11,6 +13,7 @@
 
 #include "hlt/nn/activation.h"
 #include "hlt/nn/dense_chain.h"
+#include "hlt/nn/input_normalisation.h"
 
 namespace hlt {
 
@@ -21,6 +24,10 @@ struct DynamicsModelOptions {
   Activation activation = Activation::kSin;
   double log_std_min = -10.0;
   double log_std_max = 2.0;
+  // Input normalisation of the state (as GaussianPolicyOptions'; all empty: none). The residual adds the raw
+  // state: only what the network reads is normalised.
+  std::vector<double> input_offset, input_scale;
+  std::vector<int64_t> input_reference;
 };
 
 class DynamicsModelImpl : public torch::nn::Module {
@@ -42,6 +49,7 @@ class DynamicsModelImpl : public torch::nn::Module {
                             const torch::Tensor& next_state, double scale = 1.0);
 
   const DynamicsModelOptions& options() const { return options_; }
+  const InputNormaliser& normaliser() const { return normaliser_; }
   torch::nn::Linear fc1{nullptr}, fc2{nullptr};
   torch::Tensor log_std_param;
 
@@ -58,6 +66,7 @@ class DynamicsModelImpl : public torch::nn::Module {
 
  private:
   DynamicsModelOptions options_;
+  InputNormaliser normaliser_;
   torch::Tensor domain_low_, domain_high_;
   // loss_with_gradient's buffers, kept between calls.
   torch::Tensor x_ = empty_buffer(), h_ = empty_buffer(), act_ = empty_buffer(), mean_ = empty_buffer(),

@@ -13,6 +13,7 @@
 
 #include "hlt/nn/activation.h"
 #include "hlt/nn/dense_chain.h"
+#include "hlt/nn/input_normalisation.h"
 
 namespace hlt {
 
@@ -35,12 +36,6 @@ struct GaussianPolicyOptions {
   // input_reference[i] (-1: to nothing), s_i - s_r before the offset and scale, r != i; references read the
   // raw state. A block's position relative to the gripper, say, shown at the millimetres that matter.
   std::vector<int64_t> input_reference;
-};
-
-// The normalisation as tensors: the heads see (s map_t - offset) * inv_scale, with map_t ([n, n]) undefined
-// when no component has a reference.
-struct InputNormalisation {
-  torch::Tensor offset, inv_scale, map_t;
 };
 
 struct PolicySample {
@@ -85,8 +80,7 @@ class GaussianPolicyImpl : public torch::nn::Module {
 
  private:
   GaussianPolicyOptions options_;
-  torch::Tensor input_offset_, input_inv_scale_;  // [n], float64; undefined without normalisation
-  torch::Tensor input_map_t_;                     // [n, n], float64; undefined without references
+  InputNormaliser normaliser_;
 };
 TORCH_MODULE(GaussianPolicy);
 

@@ -1,15 +1,18 @@
-// hlt::RewardModel: the learned reward r(s, a) = Linear(n+m, 200) ReLU Linear(200, 200) ReLU Linear(200, 1),
+// hlt::RewardModel: the learned reward r(s, a) = Linear(n+m, 200) ReLU Linear(200, 200) ReLU Linear(200, 1)
+// on [x(s), a] (x(s) = s unless the options ask for input normalisation),
 // trained by a TD-style loss so that it also carries value information for rewards that depend on more
 // than the current state (paper appendix, "Models").
 #pragma once
 
 #include <cstdint>
+#include <vector>
 
 #include <torch/nn/module.h>
 
 #include <torch/nn/modules/linear.h>
 #include "hlt/nn/dense_chain.h"
 #include "hlt/nn/dense_layers.h"
+#include "hlt/nn/input_normalisation.h"
 
 namespace hlt {
 
@@ -17,6 +20,9 @@ struct RewardModelOptions {
   int64_t state_dim = 0;
   int64_t action_dim = 0;
   int64_t hidden = 200;
+  // Input normalisation of the state (as GaussianPolicyOptions'; all empty: none).
+  std::vector<double> input_offset, input_scale;
+  std::vector<int64_t> input_reference;
 };
 
 class RewardModelImpl : public torch::nn::Module {
@@ -39,10 +45,12 @@ class RewardModelImpl : public torch::nn::Module {
                                double scale = 1.0);
 
   const RewardModelOptions& options() const { return options_; }
+  const InputNormaliser& normaliser() const { return normaliser_; }
   torch::nn::Linear fc1{nullptr}, fc2{nullptr}, fc3{nullptr};
 
  private:
   RewardModelOptions options_;
+  InputNormaliser normaliser_;
   // td_loss_with_gradient's buffers, kept between calls.
   torch::Tensor x_ = empty_buffer(), h1_ = empty_buffer(), h2_ = empty_buffer(), r_ = empty_buffer(),
                 next_x_ = empty_buffer(), next_h1_ = empty_buffer(), next_h2_ = empty_buffer(),
