@@ -112,13 +112,19 @@ std::unique_ptr<Learner> make_model_learner(LearnerContext& context) {
   const int64_t n = context.state_dim, a = context.action_dim;
   const bool normalize = c.get_bool("model.normalize_inputs");
   if (!m.dynamics) {
-    DynamicsModelOptions o{n, a, c.get_int("model.hidden"),
-                           parse_activation(c.get_string("model.activation"))};
+    DynamicsModelOptions o;
+    o.state_dim = n;
+    o.action_dim = a;
+    o.hidden = c.get_int("model.hidden");
+    o.activation = parse_activation(c.get_string("model.activation"));
     if (normalize) set_input_normalisation(context, "model.normalize_inputs", o);
     m.dynamics = DynamicsModel(o);
   }
   if (!m.reward) {
-    RewardModelOptions o{n, a, c.get_int("model.reward_hidden")};
+    RewardModelOptions o;
+    o.state_dim = n;
+    o.action_dim = a;
+    o.hidden = c.get_int("model.reward_hidden");
     if (normalize) set_input_normalisation(context, "model.normalize_inputs", o);
     m.reward = RewardModel(o);
   }
