@@ -40,6 +40,7 @@ StochasticHybridOptions stochastic_options(const Config& c) {
   o.min_ess = c.get_double("planner.min_ess_fraction") * static_cast<double>(o.samples);
   o.clamp_to_domain = c.get_bool("planner.clamp_to_data");
   o.terminal_value_weight = c.get_double("planner.terminal_value");
+  o.average_before_squash = c.get_bool("planner.average_before_squash");
   return o;
 }
 

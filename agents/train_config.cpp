@@ -120,6 +120,10 @@ Config make_train_config() {
       .add_bool("planner.mean_rollout", false,
                 "hybrid-stochastic: the first policy rollout follows the policy's mean action instead of a "
                 "draw, so the planner can choose the policy's own action")
+      .add_bool("planner.average_before_squash", false,
+                "hybrid-stochastic: the plan averages the weighted samples before the policy's tanh, "
+                "a = tanh(sum_k w_k atanh(v_k)), instead of the squashed actions, sum_k w_k v_k (the "
+                "paper's); with weights the models cannot sharpen this stays near the policy's own action")
       .add_bool(
           "planner.clamp_to_data", false,
           "stochastic planners (hybrid-stochastic, NN-MPPI): keep the predicted states inside the range "

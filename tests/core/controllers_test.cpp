@@ -799,6 +799,46 @@ TEST(StochasticHybrid, InfiniteTemperatureGivesMeanPerturbationAndPlanShifts) {
   EXPECT_EQ(dens.plan().abs().sum().item<double>(), 0.0);
 }
 
+TEST(StochasticHybrid, AveragingBeforeTheSquashGivesThePoliciesOwnActionUnderUniformWeights) {
+  // A broad policy with a constant mean: mu = 0.8, sigma = e^0.5 = 1.65 in both action dimensions.
+  Models md = random_models(2, 2, 41, 0.5);
+  {
+    torch::NoGradGuard g;
+    auto last_mean = md.policy->mean_layers[1]->as<torch::nn::Linear>();
+    last_mean->weight.zero_();
+    last_mean->bias.fill_(0.8);
+  }
+  const auto s0 = torch::randn({2}, torch::kFloat64);
+  auto run = [&](bool before_squash, double lambda, bool density) {
+    torch::manual_seed(7);
+    StochasticHybridOptions o{3, 4000, lambda, density, 1e-5};
+    o.average_before_squash = before_squash;
+    auto h = std::make_unique<StochasticHybrid>(std::make_shared<PolicySampler>(md.policy, false),
+                                                md.dynamics, md.reward, o, md.policy);
+    h->act(s0);
+    return h;
+  };
+  // Uniform weights (lambda -> infinity, no density): the paper's plan is the mean of the squashed draws,
+  // E tanh(0.8 + 1.65 z) = 0.331 (quadrature), far below tanh(0.8) = 0.664; averaged before the squash it is
+  // tanh of the draws' mean, within 4 standard errors (1.65 / sqrt(4000) = 0.026, times 1 - 0.664^2) of
+  // tanh(0.8).
+  const auto paper = run(false, 1e12, false), before = run(true, 1e12, false);
+  EXPECT_TRUE(torch::equal(paper->samples(), before->samples()));
+  EXPECT_TRUE(torch::allclose(paper->plan(), paper->samples().mean(1), 1e-12, 1e-12));
+  const auto u = torch::atanh(before->samples().clamp(-(1 - 1e-6), 1 - 1e-6));
+  EXPECT_TRUE(torch::allclose(before->plan(), torch::tanh(u.mean(1)), 1e-12, 1e-12));
+  for (int64_t i = 0; i < 2; ++i) {
+    EXPECT_NEAR(paper->plan()[0][i].item<double>(), 0.331, 0.03);
+    EXPECT_NEAR(before->plan()[0][i].item<double>(), std::tanh(0.8), 4 * 0.026 * (1 - 0.664 * 0.664));
+  }
+  // With the models' weights (and the density): a_t = tanh(sum_k w_t^k atanh(v_t^k)).
+  const auto weighted = run(true, 0.05, true);
+  const auto uw = torch::atanh(weighted->samples().clamp(-(1 - 1e-6), 1 - 1e-6));
+  EXPECT_TRUE(torch::allclose(weighted->plan(), torch::tanh((weighted->weights().unsqueeze(-1) * uw).sum(1)),
+                              1e-12, 1e-12));
+  EXPECT_LT(weighted->diagnostics().weight_ess, 3900.0);
+}
+
 TEST(StochasticHybrid, SameSeedSameActions) {
   Models md = random_models(3, 1, 41);
   auto run = [&] {

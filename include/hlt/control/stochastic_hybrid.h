@@ -45,6 +45,13 @@ struct StochasticHybridOptions {
   // lookahead do not see the consequences that decide a task later (on the cart-pole, a cart driven to
   // the end of its rail while the pole falls towards it); SAC's critic, trained on the same data, does.
   double terminal_value_weight = 0;
+  // Average the samples where the policy's Gaussian lives, before its tanh: a_t = tanh(sum_k w_t^k
+  // atanh(v_t^k)) (v clipped to +-(1 - 1e-6)) instead of the paper's a_t = sum_k w_t^k v_t^k. Why: the
+  // average of squashed draws of a broad policy is pulled towards 0 and jitters (E tanh(u) is smaller than
+  // tanh(E u)), so where the models cannot yet tell the samples apart the planner acts more timidly than the
+  // policy's own action tanh(mu); averaged before the squash, uniform weights give about tanh(mu). Meant for
+  // policy samples (a clipped NN-MPPI sample at +-1 counts as atanh(1 - 1e-6) = 7.25).
+  bool average_before_squash = false;
 };
 
 // A value estimate of states [K, n]: returns [K] (or [K, 1]). Called in inference mode.
