@@ -83,6 +83,18 @@ Eigen::VectorXd BlockPush::reset_impl(std::mt19937_64& rng) {
   return observation();
 }
 
+std::optional<ObservationScale> BlockPush::observation_scale() const {
+  ObservationScale s;
+  // ee -> block (dx, dy, dyaw), block -> target (dx, dy, dyaw). The block starts 7-25 cm ahead of the tool
+  // (x), within the workspace's +-22 cm sideways (y); the target anywhere in the workspace.
+  s.offset = Eigen::VectorXd::Zero(6);
+  s.offset[0] = 0.12;
+  s.scale.resize(6);
+  s.scale << 0.1, 0.15, kPi / 2, 0.1, 0.15, kPi / 2;
+  s.reference = Eigen::VectorXi::Constant(6, -1);
+  return s;
+}
+
 Eigen::VectorXd BlockPush::observation() const {
   const Eigen::Isometry3d e = scene_->arm().tool_pose();
   const Eigen::Isometry3d b = scene_->block_pose(0);

@@ -37,6 +37,9 @@ class BlockPush : public Env {
   // Whether the block's centre is within kSuccessRadius of the target (in the table's plane).
   bool success() const;
   std::optional<bool> episode_success() const override { return success(); }
+  // The positions over the workspace's 10-20 cm, the yaws over their +-pi: raw, a yaw of 2 rad outweighs
+  // every position the reward depends on.
+  std::optional<ObservationScale> observation_scale() const override;
   const Eigen::Vector3d& target() const { return target_; }  // x, y, yaw
   const Tabletop& scene() const { return *scene_; }
   Tabletop& scene() { return *scene_; }

@@ -80,6 +80,27 @@ TEST(BlockPush, ResetPlacesBlockAndTargetInTheWorkspace) {
   EXPECT_GE(closest, 0.07 - 1e-4);
 }
 
+TEST(BlockPush, DeclaredScaleMapsResetObservationsToUnitSizedInputs) {
+  BlockPush env;
+  const std::optional<ObservationScale> scale = env.observation_scale();
+  ASSERT_TRUE(scale.has_value());
+  ASSERT_EQ(scale->scale.size(), 6);
+  ASSERT_EQ(scale->offset.size(), 6);
+  Eigen::VectorXd low = Eigen::VectorXd::Constant(6, 1e9), high = -low;
+  for (uint64_t seed = 0; seed < 200; ++seed) {
+    const Eigen::VectorXd o = env.reset(seed);
+    const Eigen::VectorXd z = ((o - scale->offset).array() / scale->scale.array()).matrix();
+    low = low.cwiseMin(z);
+    high = high.cwiseMax(z);
+  }
+  for (int i = 0; i < 6; ++i) {
+    // Inside +-2.5 (no input dominates the others), and spread over at least one unit (none is flattened).
+    EXPECT_GE(low[i], -2.5) << "component " << i;
+    EXPECT_LE(high[i], 2.5) << "component " << i;
+    EXPECT_GE(high[i] - low[i], 1.0) << "component " << i;
+  }
+}
+
 TEST(BlockPush, ToolStaysPlanarAndInsideTheWorkspace) {
   BlockPush env;
   env.reset(1);
