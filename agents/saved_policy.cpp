@@ -2,6 +2,9 @@
 
 #include <torch/torch.h>
 
+#include "agents/learner.h"
+#include "agents/train_config.h"
+#include "envs/registry.h"
 #include "hlt/core/checkpoint.h"
 #include "hlt/nn/gaussian_policy.h"
 #include "hlt/util/error.h"
@@ -66,6 +69,32 @@ SavedPolicy load_saved_policy(const std::string& path) {
   out.options = o;
   out.source = std::make_unique<CheckpointPolicy>(
       policy, fmt::format("policy mean from {} ({} on {})", path, out.method, out.env));
+  return out;
+}
+
+SavedModels load_saved_models(const std::string& path) {
+  CheckpointReader r(path);
+  SavedModels out;
+  out.env = r.get_string("env");
+  out.method = r.get_string("method");
+  out.frame_skip = static_cast<int>(r.get_int("frame_skip"));
+  check(r.has("dynamics") && r.has("reward"),
+        "checkpoint {} holds no dynamics and reward models (it was written by method '{}')", path,
+        out.method);
+  Config config = make_train_config();
+  config.merge_yaml(r.get_string("config"), path);
+  const std::unique_ptr<Env> env = make_env(out.env);
+  LearnedModels models;
+  LearnerContext context{config, env->observation_dim(),  env->action_dim(), 0,
+                         models, env->observation_scale()};
+  // The model learner's factory builds both networks exactly as the run did.
+  make_learner("models", context);
+  r.load_module("dynamics", *models.dynamics);
+  r.load_module("reward", *models.reward);
+  models.dynamics->eval();
+  models.reward->eval();
+  out.dynamics = models.dynamics;
+  out.reward = models.reward;
   return out;
 }
 

@@ -1,13 +1,16 @@
 // Loading a trained policy from an hlt_train checkpoint as a PolicySource for tools (hlt_rollout). The
 // checkpoint carries the policy's architecture, so no config is needed; the source acts with the policy's
-// mean action.
+// mean action. The learned dynamics and reward models load too, rebuilt from the run's config that the
+// checkpoint holds, for tools that compare their predictions with the environment.
 #pragma once
 
 #include <memory>
 #include <string>
 
 #include "envs/rollout.h"
+#include "hlt/nn/dynamics_model.h"
 #include "hlt/nn/gaussian_policy.h"
+#include "hlt/nn/reward_model.h"
 
 namespace hlt {
 
@@ -21,5 +24,18 @@ struct SavedPolicy {
 
 // Throws hlt::Error if the file is not an hlt checkpoint or holds no policy (e.g. a baseline without one).
 SavedPolicy load_saved_policy(const std::string& checkpoint_path);
+
+struct SavedModels {
+  DynamicsModel dynamics{nullptr};
+  RewardModel reward{nullptr};
+  std::string env;     // the environment they were trained on
+  std::string method;  // the method that trained them
+  int frame_skip = 1;  // the frame skip of their run: they predict one such step
+};
+
+// The checkpoint's dynamics and reward models (in evaluation mode), built as its run's config says (model.*,
+// with the environment's declared observation ranges where model.normalize_inputs asks for them). Throws
+// hlt::Error if the checkpoint holds no models (e.g. SAC or behaviour cloning).
+SavedModels load_saved_models(const std::string& checkpoint_path);
 
 }  // namespace hlt

@@ -5,7 +5,7 @@
 //   hlt_rollout --env cartpole_swingup --episodes 10 --seed 0
 //               --policy zero|random|constant:0.5|checkpoint:PATH|expert:PATH|scripted:NAME
 //               [--frame-skip K] [--csv traj.csv] [--video out.mp4] [--strip out.png] [--demos out.hltd]
-//               [--perception]
+//               [--perception] [--models CHECKPOINT --predictions pred.csv]
 #include <algorithm>
 #include <cmath>
 #include <iostream>
@@ -15,6 +15,7 @@
 #include <vector>
 
 #include <fmt/format.h>
+#include <torch/torch.h>
 #include <unistd.h>
 #include <CLI/CLI.hpp>
 #include <cerrno>
@@ -177,6 +178,39 @@ struct Options {
   std::string demos;        // record every episode as demonstrations (.hltd)
   int max_steps = 0;        // cut episodes after this many steps (0: the environment's limit)
   bool perception = false;  // report the camera-observed task's estimator error and step timings
+  std::string models;       // a checkpoint whose dynamics and reward models predict every step
+  std::string predictions;  // where their predictions go (CSV)
+};
+
+// The learned models' one-step predictions next to what the environment did: per step the observation's
+// next value and the reward, predicted from the step's observation and action.
+class PredictionCsv {
+ public:
+  PredictionCsv(SavedModels models, int observation_dim) : models_(std::move(models)) {
+    text_ = "episode,step";
+    for (int i = 0; i < observation_dim; ++i)
+      text_ += fmt::format(",pred_obs_{}", i);
+    text_ += ",pred_reward\n";
+  }
+  void add(int episode, const Transition& t) {
+    torch::InferenceMode guard;
+    auto row = [](const Eigen::VectorXd& v) {
+      return torch::from_blob(const_cast<double*>(v.data()), {1, v.size()}, torch::kFloat64)
+          .to(torch::kFloat32);
+    };
+    const at::Tensor s = row(t.observation), a = row(t.action);
+    const at::Tensor next = models_.dynamics->forward(s, a).to(torch::kFloat64).contiguous();
+    const double r = models_.reward->forward(s, a).item<double>();
+    text_ += fmt::format("{},{}", episode, t.step);
+    for (int64_t i = 0; i < next.numel(); ++i)
+      text_ += fmt::format(",{:.17g}", next.data_ptr<double>()[i]);
+    text_ += fmt::format(",{:.17g}\n", r);
+  }
+  const std::string& text() const { return text_; }
+
+ private:
+  SavedModels models_;
+  std::string text_;
 };
 
 int run(Options o, bool frame_skip_given) {
@@ -185,6 +219,20 @@ int run(Options o, bool frame_skip_given) {
     saved = load_saved_policy(o.policy.substr(std::string(kCheckpointPrefix).size()));
     // Act at the rate the policy was trained at unless told otherwise.
     if (!frame_skip_given) o.frame_skip = saved->frame_skip;
+  }
+  std::optional<SavedModels> models;
+  check(o.models.empty() == o.predictions.empty(), "--models and --predictions go together");
+  if (!o.models.empty()) {
+    models = load_saved_models(o.models);
+    check(models->env == o.env, "--models {}: its models were trained on {}, not {}", o.models, models->env,
+          o.env);
+    // The models predict one step of their run's frame skip.
+    check(!frame_skip_given || o.frame_skip == models->frame_skip,
+          "--models {} predicts steps of frame skip {}, not {}", o.models, models->frame_skip, o.frame_skip);
+    check(!saved || saved->frame_skip == models->frame_skip,
+          "--policy and --models were trained with frame skips {} and {}", saved->frame_skip,
+          models->frame_skip);
+    o.frame_skip = models->frame_skip;
   }
   std::unique_ptr<Env> env = make_env(o.env);
   if (o.frame_skip != 1) env = std::make_unique<FrameSkip>(std::move(env), o.frame_skip);
@@ -201,7 +249,9 @@ int run(Options o, bool frame_skip_given) {
   check(o.strip.empty() || extension(o.strip) == "png", "--strip {}: use a .png file name", o.strip);
   check(o.strip_frames >= 1 && o.record_episodes >= 0,
         "--strip-frames must be >= 1 and --record-episodes >= 0");
-  for (const std::string* out : {&o.csv, &o.video, &o.strip, &o.demos}) {
+  std::optional<PredictionCsv> predictions;
+  if (models) predictions.emplace(std::move(*models), env->observation_dim());
+  for (const std::string* out : {&o.csv, &o.video, &o.strip, &o.demos, &o.predictions}) {
     const auto slash = out->find_last_of('/');
     if (!out->empty() && slash != std::string::npos && slash > 0)
       ensure_writable_directory(out->substr(0, slash));
@@ -240,6 +290,7 @@ int run(Options o, bool frame_skip_given) {
       // The step's timing is taken before this tool's own work on it (CSV, frames, demonstrations).
       if (perception) perception->after_step();
       if (!o.csv.empty()) csv.add(ep, t);
+      if (predictions) predictions->add(ep, t);
       if (record) recorder.add(env->render(o.width, o.height));
       if (demos)
         demo_steps.push_back({t.observation, t.action, t.result.observation, t.result.reward,
@@ -275,6 +326,10 @@ int run(Options o, bool frame_skip_given) {
   if (!o.csv.empty()) {
     write_file_atomic(o.csv, csv.text());
     fmt::print("wrote {}\n", o.csv);
+  }
+  if (predictions) {
+    write_file_atomic(o.predictions, predictions->text());
+    fmt::print("wrote {}\n", o.predictions);
   }
   if (!o.video.empty() && recorder.frames() > 0) {
     if (recorder.finish_video()) {
@@ -328,6 +383,13 @@ int run_tool(int argc, char** argv) {
                "Camera-observed tasks: report the estimator's error against the simulator (mean, 95th "
                "percentile, misses) and the time per control step (render, perceive, rest)");
   app.add_option("--height", o.height, "Frame height in pixels")->capture_default_str();
+  app.add_option("--models", o.models,
+                 "An hlt_train checkpoint whose dynamics and reward models predict every step (with "
+                 "--predictions)");
+  app.add_option(
+      "--predictions", o.predictions,
+      "Write the models' one-step predictions (next observation, reward) of every step to this CSV, "
+      "row for row with --csv");
   if (const std::optional<int> code = hlt::parse_command_line(app, argc, argv)) return *code;
   hlt::check_finite_flags(app);
   if (list) {

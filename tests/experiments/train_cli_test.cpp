@@ -18,6 +18,7 @@
 
 #include <sstream>
 
+#include "agents/saved_policy.h"
 #include "envs/registry.h"
 #include "experiments/cli_support.h"
 #include "hlt/util/files.h"
@@ -202,6 +203,72 @@ TEST(TrainCli, NeverOverwritesARunAndReportsCorruptCheckpoints) {
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("corrupt"), std::string::npos) << r.output;
   EXPECT_EQ(read_file(dir + "/scalars.csv"), log_before);
+}
+
+TEST(RolloutCli, ModelsPredictEveryStepOfTheRollout) {
+  const std::string dir = fresh_dir("models");
+  Result r = run(kTrain + kSmall + " --method hybrid-stochastic --steps 60 eval.every=0 --out " + dir);
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run(std::string(HLT_ROLLOUT_BIN) + " --env pendulum --episodes 2 --policy random --csv " + dir +
+          "/traj.csv --models " + dir + "/final.pt --predictions " + dir + "/pred.csv");
+  ASSERT_EQ(r.code, 0) << r.output;
+  // Row for row: (episode, step) the same, and each row the loaded models' one-step prediction from that
+  // row's observation and action.
+  auto lines = [](const std::string& path) {
+    std::vector<std::string> out;
+    std::istringstream in(read_file(path));
+    for (std::string line; std::getline(in, line);)
+      out.push_back(line);
+    return out;
+  };
+  const std::vector<std::string> traj = lines(dir + "/traj.csv"), pred = lines(dir + "/pred.csv");
+  ASSERT_EQ(traj.size(), pred.size());
+  // Two episodes of 50 steps at the run's frame skip 4 (the models predict such a step), and the header.
+  ASSERT_EQ(traj.size(), 2u * 50 + 1);
+  SavedModels models = load_saved_models(dir + "/final.pt");
+  EXPECT_EQ(models.method, "hybrid-stochastic");
+  torch::InferenceMode guard;
+  for (size_t i : {size_t(1), size_t(37), size_t(100)}) {
+    auto fields = [](const std::string& line) {
+      std::vector<double> v;
+      std::stringstream in(line);
+      for (std::string f; std::getline(in, f, ',');)
+        v.push_back(std::stod(f));
+      return v;
+    };
+    const std::vector<double> t = fields(traj[i]), p = fields(pred[i]);
+    // traj: episode, step, 3 observations, 1 action, reward, done, truncated; pred: episode, step, 3
+    // predicted observations, predicted reward.
+    ASSERT_EQ(t.size(), 9u);
+    ASSERT_EQ(p.size(), 6u);
+    EXPECT_EQ(t[0], p[0]);
+    EXPECT_EQ(t[1], p[1]);
+    const auto s = torch::tensor({t[2], t[3], t[4]}, torch::kFloat32).view({1, 3});
+    const auto a = torch::tensor({t[5]}, torch::kFloat32).view({1, 1});
+    const auto next = models.dynamics->forward(s, a);
+    for (int k = 0; k < 3; ++k)
+      EXPECT_NEAR(p[2 + k], next[0][k].item<double>(), 1e-5) << "row " << i;
+    EXPECT_NEAR(p[5], models.reward->forward(s, a).item<double>(), 1e-5) << "row " << i;
+  }
+  // Refused: without --predictions, at another frame skip, on another environment, and a checkpoint without
+  // models (SAC).
+  r = run(std::string(HLT_ROLLOUT_BIN) + " --env pendulum --frame-skip 1 --models " + dir +
+          "/final.pt --predictions " + dir + "/x.csv");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.output.find("predicts steps of frame skip 4, not 1"), std::string::npos) << r.output;
+  r = run(std::string(HLT_ROLLOUT_BIN) + " --env pendulum --models " + dir + "/final.pt");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.output.find("--models and --predictions go together"), std::string::npos) << r.output;
+  r = run(std::string(HLT_ROLLOUT_BIN) + " --env acrobot --models " + dir + "/final.pt --predictions " + dir +
+          "/x.csv");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.output.find("trained on pendulum, not acrobot"), std::string::npos) << r.output;
+  const std::string sac = fresh_dir("models_sac");
+  ASSERT_EQ(run(kTrain + kSmall + " --method sac --steps 60 eval.every=0 --out " + sac).code, 0);
+  r = run(std::string(HLT_ROLLOUT_BIN) + " --env pendulum --models " + sac + "/final.pt --predictions " +
+          sac + "/x.csv");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.output.find("holds no dynamics and reward models"), std::string::npos) << r.output;
 }
 
 TEST(TrainCli, ResumeNeverDestroysData) {
