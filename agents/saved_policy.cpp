@@ -31,14 +31,20 @@ class CheckpointPolicy : public PolicySource {
   std::string description_;
 };
 
+// The run a checkpoint came from: its environment, method and frame skip.
+template <typename Saved>
+void read_run(CheckpointReader& r, Saved& out) {
+  out.env = r.get_string("env");
+  out.method = r.get_string("method");
+  out.frame_skip = static_cast<int>(r.get_int("frame_skip"));
+}
+
 }  // namespace
 
 SavedPolicy load_saved_policy(const std::string& path) {
   CheckpointReader r(path);
   SavedPolicy out;
-  out.env = r.get_string("env");
-  out.method = r.get_string("method");
-  out.frame_skip = static_cast<int>(r.get_int("frame_skip"));
+  read_run(r, out);
   check(r.has("policy_hidden"), "checkpoint {} holds no policy (it was written by method '{}')", path,
         out.method);
   const at::Tensor hidden = r.tensor("policy_hidden");
@@ -75,9 +81,7 @@ SavedPolicy load_saved_policy(const std::string& path) {
 SavedModels load_saved_models(const std::string& path) {
   CheckpointReader r(path);
   SavedModels out;
-  out.env = r.get_string("env");
-  out.method = r.get_string("method");
-  out.frame_skip = static_cast<int>(r.get_int("frame_skip"));
+  read_run(r, out);
   check(r.has("dynamics") && r.has("reward"),
         "checkpoint {} holds no dynamics and reward models (it was written by method '{}')", path,
         out.method);
