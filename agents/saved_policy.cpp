@@ -2,6 +2,7 @@
 
 #include <torch/torch.h>
 
+#include "agents/controller_policy.h"
 #include "agents/learner.h"
 #include "agents/train_config.h"
 #include "envs/registry.h"
@@ -19,11 +20,7 @@ class CheckpointPolicy : public PolicySource {
   std::string describe() const override { return description_; }
   Eigen::VectorXd act(const Eigen::VectorXd& observation) override {
     torch::InferenceMode guard;
-    const at::Tensor s =
-        torch::from_blob(const_cast<double*>(observation.data()), {1, observation.size()}, torch::kFloat64)
-            .to(torch::kFloat32);
-    const at::Tensor a = policy_->mean_action(s).to(torch::kFloat64).contiguous();
-    return Eigen::Map<const Eigen::VectorXd>(a.data_ptr<double>(), a.numel());
+    return action_vector(policy_->mean_action(observation_tensor(observation).unsqueeze(0)));
   }
 
  private:

@@ -25,6 +25,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
+#include "agents/controller_policy.h"
 #include "agents/demonstrations.h"
 #include "agents/policy_spec.h"
 #include "agents/saved_policy.h"
@@ -194,16 +195,13 @@ class PredictionCsv {
   }
   void add(int episode, const Transition& t) {
     torch::InferenceMode guard;
-    auto row = [](const Eigen::VectorXd& v) {
-      return torch::from_blob(const_cast<double*>(v.data()), {1, v.size()}, torch::kFloat64)
-          .to(torch::kFloat32);
-    };
-    const at::Tensor s = row(t.observation), a = row(t.action);
-    const at::Tensor next = models_.dynamics->forward(s, a).to(torch::kFloat64).contiguous();
+    const at::Tensor s = observation_tensor(t.observation).unsqueeze(0);
+    const at::Tensor a = observation_tensor(t.action).unsqueeze(0);
+    const Eigen::VectorXd next = action_vector(models_.dynamics->forward(s, a));
     const double r = models_.reward->forward(s, a).item<double>();
     text_ += fmt::format("{},{}", episode, t.step);
-    for (int64_t i = 0; i < next.numel(); ++i)
-      text_ += fmt::format(",{:.17g}", next.data_ptr<double>()[i]);
+    for (Eigen::Index i = 0; i < next.size(); ++i)
+      text_ += fmt::format(",{:.17g}", next[i]);
     text_ += fmt::format(",{:.17g}\n", r);
   }
   const std::string& text() const { return text_; }

@@ -174,8 +174,7 @@ at::Tensor MixtureSampler::log_density(const at::Tensor& actions) {
       const auto v = block<T>(actions, t * K * m, K, m).array().max(-edge).min(edge);
       const auto mu = row_map<T>(prior_.mean()).middleRows(t * K, K).array(),
                  ls = row_map<T>(prior_.log_std()).middleRows(t * K, K).array();
-      // atanh(v) = log((1 + v) / (1 - v)) / 2
-      const auto u = T(0.5) * ((T(1) + v) / (T(1) - v)).log();
+      const auto u = clipped_atanh(v);
       const auto gauss = T(-0.5) * ((u - mu) * (-ls).exp()).square() - ls - T(kHalfLog2Pi);
       if (tanh_correction_) {
         block<T>(out, t * K, 1, K) =

@@ -128,35 +128,33 @@ at::Tensor StochasticHybrid::compute_action(const at::Tensor& state) {
     auto w = row_map<T>(weights_);
     w = planner_weights<T>(scaled, options_.density_in_weights ? &density : nullptr, options_.weight_floor,
                            options_.min_ess);
-    // a_t += sum_k w_t^k (v_t^k - a_t)
     auto plan = row_map<T>(plan_);
     Eigen::Map<const RowMatrix<T>> all_samples(samples_.data_ptr<T>(), H * K, m);
     const bool all_finite = all_samples.allFinite();
-    const T bound = T(1 - 1e-6);
+    // dst += sum_k w_t^k x^k over the rows of x [K, m]. A diverged rollout's later actions are NaN (drawn at
+    // NaN states) and its weight is 0: leave it out rather than let 0 x NaN through. Rows with no finite
+    // weight stay NaN (the fallback).
+    auto add_weighted = [&](int64_t t, const auto& x, auto&& dst) {
+      if (all_finite) {
+        dst += w.row(t) * x;
+        return;
+      }
+      Eigen::Matrix<T, 1, Eigen::Dynamic> step = Eigen::Matrix<T, 1, Eigen::Dynamic>::Zero(m);
+      for (int64_t k = 0; k < K; ++k)
+        if (w(t, k) != T(0)) step += w(t, k) * x.row(k);  // NaN != 0: kept
+      dst += step;
+    };
     for (int64_t t = 0; t < H; ++t) {
       Eigen::Map<const RowMatrix<T>> v(samples_.data_ptr<T>() + t * K * m, K, m);
       if (options_.average_before_squash) {
-        // a_t = tanh(sum_k w_t^k atanh(v_t^k)), atanh(v) = log((1 + v) / (1 - v)) / 2; as below, a sample
-        // with weight 0 (a diverged rollout's NaN actions) is left out.
-        const auto c = v.array().max(-bound).min(bound);
-        const RowMatrix<T> u = (T(0.5) * ((T(1) + c) / (T(1) - c)).log()).matrix();
+        // a_t = tanh(sum_k w_t^k atanh(v_t^k))
+        const RowMatrix<T> u = clipped_atanh(v.array()).matrix();
         Eigen::Matrix<T, 1, Eigen::Dynamic> mean = Eigen::Matrix<T, 1, Eigen::Dynamic>::Zero(m);
-        if (all_finite) {
-          mean = w.row(t) * u;
-        } else {
-          for (int64_t k = 0; k < K; ++k)
-            if (w(t, k) != T(0)) mean += w(t, k) * u.row(k);  // NaN != 0: kept
-        }
+        add_weighted(t, u, mean);
         plan.row(t) = mean.array().tanh().matrix();
-      } else if (all_finite) {
-        plan.row(t) += w.row(t) * (v.rowwise() - plan.row(t));
       } else {
-        // A diverged rollout's later actions are NaN (drawn at NaN states) and its weight is 0: leave it
-        // out rather than let 0 x NaN through. Rows with no finite weight stay NaN (the fallback).
-        Eigen::Matrix<T, 1, Eigen::Dynamic> step = Eigen::Matrix<T, 1, Eigen::Dynamic>::Zero(m);
-        for (int64_t k = 0; k < K; ++k)
-          if (w(t, k) != T(0)) step += w(t, k) * (v.row(k) - plan.row(t));  // NaN != 0: kept
-        plan.row(t) += step;
+        // a_t += sum_k w_t^k (v_t^k - a_t)
+        add_weighted(t, v.rowwise() - plan.row(t), plan.row(t));
       }
     }
     finite = plan.allFinite();

@@ -18,6 +18,17 @@
 
 namespace hlt {
 
+// u = atanh(v) of squashed actions v (an Eigen array expression), with v clipped to +-(1 - 1e-6) first so
+// that an action at +-1 (an NN-MPPI sample clipped to the bounds) maps to a finite 7.25, not infinity.
+template <typename Derived>
+auto clipped_atanh(const Eigen::ArrayBase<Derived>& v) {
+  using T = typename Derived::Scalar;
+  const T edge = T(1) - T(1e-6);
+  const auto c = v.max(-edge).min(edge);
+  // atanh(c) = log((1 + c) / (1 - c)) / 2
+  return T(0.5) * ((T(1) + c) / (T(1) - c)).log();
+}
+
 class ActionSampler {
  public:
   virtual ~ActionSampler() = default;
