@@ -86,27 +86,32 @@ Eigen::VectorXd BlockPush::reset_impl(std::mt19937_64& rng) {
 std::optional<ObservationScale> BlockPush::observation_scale() const {
   ObservationScale s;
   // ee -> block (dx, dy, dyaw), block -> target (dx, dy, dyaw). The block starts 7-25 cm ahead of the tool
-  // (x), within the workspace's +-22 cm sideways (y); the target anywhere in the workspace.
-  s.offset = Eigen::VectorXd::Zero(6);
+  // (x), within the workspace's +-22 cm sideways (y); the target anywhere in the workspace. The tool's
+  // position (already from the workspace's centre) over the workspace's half-sizes, its command over the
+  // top speed.
+  s.offset = Eigen::VectorXd::Zero(kObservationDim);
   s.offset[0] = 0.12;
-  s.scale.resize(6);
-  s.scale << 0.1, 0.15, kPi / 2, 0.1, 0.15, kPi / 2;
-  s.reference = Eigen::VectorXi::Constant(6, -1);
+  s.scale.resize(kObservationDim);
+  s.scale << 0.1, 0.15, kPi / 2, 0.1, 0.15, kPi / 2, 0.5 * (kXMax - kXMin), 0.5 * (kYMax - kYMin), kSpeed,
+      kSpeed;
+  s.reference = Eigen::VectorXi::Constant(kObservationDim, -1);
   return s;
 }
 
 Eigen::VectorXd BlockPush::observation() const {
   const Eigen::Isometry3d e = scene_->arm().tool_pose();
   const Eigen::Isometry3d b = scene_->block_pose(0);
-  Eigen::VectorXd v(6);
+  const Vector6d& command = scene_->controller().filtered();
+  Eigen::VectorXd v(kObservationDim);
   v << b.translation().x() - e.translation().x(), b.translation().y() - e.translation().y(),
       wrap(yaw_of(b) - yaw_of(e)), target_.x() - b.translation().x(), target_.y() - b.translation().y(),
-      wrap(target_.z() - yaw_of(b));
+      wrap(target_.z() - yaw_of(b)), e.translation().x() - 0.5 * (kXMin + kXMax),
+      e.translation().y() - 0.5 * (kYMin + kYMax), command[0], command[1];
   return v;
 }
 
 double BlockPush::reward(const Eigen::VectorXd& o, const Eigen::Vector2d& a) {
-  check(o.size() == 6, "block_push: observation has {} values, expected 6", o.size());
+  check(o.size() >= 6, "block_push: observation has {} values, expected at least 6", o.size());
   return -5.0 * o.segment<2>(3).norm() - 10.0 * o.head<2>().norm() - 0.01 * a.squaredNorm();
 }
 
@@ -124,7 +129,7 @@ StepResult BlockPush::step_impl(const Eigen::VectorXd& action) {
   if (!scene_->state_is_finite()) {
     r.terminated = true;
     r.failure = "block_push: the simulation became non-finite";
-    r.observation = Eigen::VectorXd::Zero(6);
+    r.observation = Eigen::VectorXd::Zero(kObservationDim);
     return r;
   }
   r.observation = observation();

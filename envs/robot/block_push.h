@@ -1,6 +1,9 @@
 // BlockPush: the paper's block-pushing task on the simulated Sawyer. The tool moves in a plane over the table
-// at the agent's planar velocity command; the state is end-effector -> block and block -> target, each
-// (dx, dy, dyaw); the reward -5 |p_b2t| - 10 |p_ee2b| - 0.01 |a|^2; 100 steps of 0.1 s; block and target
+// at the agent's planar velocity command; the state is the paper's end-effector -> block and block ->
+// target, each (dx, dy, dyaw), followed by what the robot knows of itself: the tool's position in the
+// workspace (x, y, from the workspace's centre) and the filtered velocity command it is moving at (vx, vy).
+// Without the last four the next state is not a function of state and action (the workspace clamp and the
+// filter decide how far the tool moves), and a learned model cannot fit it. The reward -5 |p_b2t| - 10 |p_ee2b| - 0.01 |a|^2; 100 steps of 0.1 s; block and target
 // placed at random in the workspace at reset (the block 7 cm inside its edges, so that the tool can reach
 // round it); success when the block's centre ends within 3 cm of the target.
 #pragma once
@@ -23,16 +26,17 @@ class BlockPush : public Env {
   static constexpr double kToolHeight = 0.025;    // the tool tip's centre, at the block's mid-height
   static constexpr double kSuccessRadius = 0.03;  // m
   static constexpr int kSteps = 100;
+  static constexpr int kObservationDim = 10;
 
   BlockPush();
   std::string name() const override { return "block_push"; }
-  int observation_dim() const override { return 6; }
+  int observation_dim() const override { return kObservationDim; }
   int action_dim() const override { return 2; }
   int max_episode_steps() const override { return kSteps; }
   double dt() const override { return 0.1; }
   cv::Mat render(int width = 480, int height = 360) const override;
 
-  // The paper's reward for an observation and (clipped) action.
+  // The paper's reward for an observation (its first six components) and (clipped) action.
   static double reward(const Eigen::VectorXd& observation, const Eigen::Vector2d& action);
   // Whether the block's centre is within kSuccessRadius of the target (in the table's plane).
   bool success() const;

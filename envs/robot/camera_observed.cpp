@@ -199,7 +199,12 @@ std::unique_ptr<Env> make_push_camera() {
         {p[0], {{Eigen::Isometry3d::Identity(), L.block_size, L.block_colour}}, {"block"}},
         {p[2], {{offset(0, 0, 0.5 * ee_height), ee_size, L.end_effector_colour}}, {"end_effector"}}};
   };
-  spec.observe = [](const TaskState& estimate, const Eigen::VectorXd&) { return estimate.vector(); };
+  // The poses from the camera; the tool's position and command from the robot itself.
+  spec.observe = [](const TaskState& estimate, const Eigen::VectorXd& state) {
+    Eigen::VectorXd o(BlockPush::kObservationDim);
+    o << estimate.vector(), state.tail(BlockPush::kObservationDim - 6);
+    return o;
+  };
   spec.reward = [](const Eigen::VectorXd& o, const Eigen::VectorXd& a) {
     return BlockPush::reward(o, a.cwiseMax(-1.0).cwiseMin(1.0));
   };

@@ -22,6 +22,10 @@ TEST(BlockPush, RewardMatchesHandComputedValues) {
   o[5] = -3.0;
   EXPECT_NEAR(BlockPush::reward(o, Eigen::Vector2d(0.5, -1.0)), -1.0125, 1e-12);
   EXPECT_NEAR(BlockPush::reward(Eigen::VectorXd::Zero(6), Eigen::Vector2d::Zero()), 0.0, 1e-15);
+  // Nor does what the robot knows of itself (the tool's position and command).
+  Eigen::VectorXd full = Eigen::VectorXd::Constant(BlockPush::kObservationDim, 0.3);
+  full.head<6>() = o;
+  EXPECT_NEAR(BlockPush::reward(full, Eigen::Vector2d(0.5, -1.0)), -1.0125, 1e-12);
 }
 
 TEST(BlockPush, StepRewardIsThePapersFromThePoses) {
@@ -42,7 +46,41 @@ TEST(BlockPush, StepRewardIsThePapersFromThePoses) {
   EXPECT_NEAR(r.observation[5], -0.8, 1e-6);
   // The tool points down with its x along the world's, so ee -> block yaw is the block's.
   EXPECT_NEAR(r.observation[2], 0.3, 1e-3);
+  ASSERT_EQ(r.observation.size(), BlockPush::kObservationDim);
+  // The tool's position from the workspace's centre, and the filtered command (from rest: the share
+  // 1 - kFilter of the clipped action's velocity).
+  EXPECT_NEAR(r.observation[6], e.x() - 0.5 * (BlockPush::kXMin + BlockPush::kXMax), 1e-12);
+  EXPECT_NEAR(r.observation[7], e.y() - 0.5 * (BlockPush::kYMin + BlockPush::kYMax), 1e-12);
+  EXPECT_NEAR(r.observation[8], (1 - BlockPush::kFilter) * BlockPush::kSpeed * 1.0, 1e-12);
+  EXPECT_NEAR(r.observation[9], (1 - BlockPush::kFilter) * BlockPush::kSpeed * -0.5, 1e-12);
   EXPECT_FALSE(r.done());
+}
+
+// Why the observation carries the tool's position and command: with the paper's six components alone, two
+// steps from the same observation with the same action move the tool differently (here: against the
+// workspace's near edge, where the clamp stops it, and in the open; and with two command histories). With
+// the last four, the observations before the step differ, so a model can tell the cases apart.
+TEST(BlockPush, ToolPositionAndCommandDecideTheToolsNextMove) {
+  BlockPush env;
+  env.reset(0);
+  // At the start the tool sits on the workspace's near edge (x = kXMin): a step towards -x cannot move it.
+  env.place({0.62, 0.0, 0.0}, {0.7, 0.15, 0.0});
+  const Eigen::VectorXd at_edge = env.observation();
+  const StepResult stopped = env.step(Eigen::Vector2d(-1.0, 0.0));
+  EXPECT_NEAR(stopped.observation[6] - at_edge[6], 0.0, 1e-3);
+  // The same layout of tool, block and target 5 cm further in: the same step now moves the tool.
+  BlockPush open;
+  open.reset(0);
+  open.place({0.67, 0.0, 0.0}, {0.75, 0.15, 0.0});
+  for (int i = 0; i < 30; ++i)  // bring the tool 5 cm in along +x and let the command die down
+    open.step(Eigen::Vector2d(i < 3 ? 0.5 : 0.0, 0.0));
+  const Eigen::VectorXd inside = open.observation();
+  const StepResult moved = open.step(Eigen::Vector2d(-1.0, 0.0));
+  EXPECT_LT(moved.observation[6] - inside[6], -0.01);
+  // The paper's six components did not tell the two starts apart (the tool 4-5 cm in front of the block,
+  // the same offsets to the target); the tool's position does.
+  EXPECT_LT((inside.head<6>() - at_edge.head<6>()).cwiseAbs().maxCoeff(), 0.01);
+  EXPECT_GT(inside[6] - at_edge[6], 0.04);
 }
 
 TEST(BlockPush, SuccessIsTheBlockWithinThreeCentimetresOfTheTarget) {
@@ -84,16 +122,31 @@ TEST(BlockPush, DeclaredScaleMapsResetObservationsToUnitSizedInputs) {
   BlockPush env;
   const std::optional<ObservationScale> scale = env.observation_scale();
   ASSERT_TRUE(scale.has_value());
-  ASSERT_EQ(scale->scale.size(), 6);
-  ASSERT_EQ(scale->offset.size(), 6);
-  Eigen::VectorXd low = Eigen::VectorXd::Constant(6, 1e9), high = -low;
-  for (uint64_t seed = 0; seed < 200; ++seed) {
-    const Eigen::VectorXd o = env.reset(seed);
+  const int n = BlockPush::kObservationDim;
+  ASSERT_EQ(scale->scale.size(), n);
+  ASSERT_EQ(scale->offset.size(), n);
+  Eigen::VectorXd low = Eigen::VectorXd::Constant(n, 1e9), high = -low;
+  // Components [from, n) of an observation.
+  auto extend = [&](const Eigen::VectorXd& o, int from) {
     const Eigen::VectorXd z = ((o - scale->offset).array() / scale->scale.array()).matrix();
-    low = low.cwiseMin(z);
-    high = high.cwiseMax(z);
+    low.tail(n - from) = low.tail(n - from).cwiseMin(z.tail(n - from));
+    high.tail(n - from) = high.tail(n - from).cwiseMax(z.tail(n - from));
+  };
+  for (uint64_t seed = 0; seed < 200; ++seed)
+    extend(env.reset(seed), 0);
+  // The tool starts at the same spot at rest: its position and command spread once it moves (random
+  // actions, held for 5 steps each, over 10 episodes; the poses' ranges are the resets').
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (uint64_t seed = 0; seed < 10; ++seed) {
+    env.reset(seed);
+    Eigen::Vector2d a;
+    for (int t = 0; t < BlockPush::kSteps; ++t) {
+      if (t % 5 == 0) a << u(rng), u(rng);
+      extend(env.step(a).observation, 6);
+    }
   }
-  for (int i = 0; i < 6; ++i) {
+  for (int i = 0; i < n; ++i) {
     // Inside +-2.5 (no input dominates the others), and spread over at least one unit (none is flattened).
     EXPECT_GE(low[i], -2.5) << "component " << i;
     EXPECT_LE(high[i], 2.5) << "component " << i;

@@ -121,6 +121,9 @@ TEST(CameraObserved, PushingEstimatorInTheLoopOverAnEpisode) {
     for (int i : {2, 5})
       EXPECT_LT(std::abs(std::remainder(e.camera[t][i] - e.state[t][i], 2 * M_PI)), 0.06)
           << "step " << t << " entry " << i;
+    // The tool's position and command are the robot's own, not the camera's.
+    ASSERT_EQ(e.camera[t].size(), BlockPush::kObservationDim);
+    EXPECT_EQ(e.camera[t].tail<4>(), e.state[t].tail<4>()) << "step " << t;
   }
   // The bounds docs/ROBOT_TASKS.md's measurements are far inside.
   EXPECT_LT(mean(e.position), 0.002);
