@@ -1,6 +1,7 @@
 #include "agents/policy_spec.h"
 
 #include "agents/expert_policy.h"
+#include "agents/oracle_policy.h"
 #include "hlt/util/error.h"
 
 namespace hlt {
@@ -20,6 +21,9 @@ std::unique_ptr<PolicySource> make_fixed_policy(const std::string& spec, const E
           env.action_dim());
     return expert;
   }
+  if (spec.rfind(OraclePolicy::kPrefix, 0) == 0)
+    return std::make_unique<OraclePolicy>(
+        env, OraclePolicy::parse(spec.substr(std::string(OraclePolicy::kPrefix).size())), seed);
   return make_policy_for(spec, env, seed);
 }
 

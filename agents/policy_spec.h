@@ -1,6 +1,7 @@
 // Fixed policies named by a string, as the tools and the imitation loop's demonstrator take them: the
 // ones of envs/rollout.h ("zero", "random", "constant:V[,...]", "scripted:NAME" for an environment's scripted
-// expert) and "expert:PATH" (ExpertPolicy).
+// expert), "expert:PATH" (ExpertPolicy) and "oracle:H,K[,LAMBDA[,NOISE]]" (OraclePolicy: MPPI on a copy of
+// the environment, which must then outlive the policy).
 // Trained policies ("checkpoint:PATH") are loaded by agents/saved_policy.h, which also needs to know the
 // frame skip before the environment is built.
 #pragma once

@@ -10,6 +10,7 @@
 #include <functional>
 
 #include "agents/controller_policy.h"
+#include "agents/model_check.h"
 #include "agents/learner.h"
 #include "agents/methods.h"
 #include "agents/policy_spec.h"
@@ -405,9 +406,18 @@ struct Trainer::Impl {
     ControllerPolicy policy(ctrl, [this](Controller& c) { tell_interactions(c); });
     std::vector<EpisodeStats> episodes;
     TrajectoryCsv csv(eval_env->observation_dim(), eval_env->action_dim());
+    // The main evaluation's transitions were never trained on: they score the dynamics model.
+    const bool check_model = label.empty() && models.dynamics;
+    ModelCheck model_check;
     for (int64_t e = 0; e < episodes_per_eval; ++e) {
       std::function<void(const Transition&)> on_step;
-      if (trace) on_step = [&](const Transition& t) { csv.add(static_cast<int>(e), t); };
+      if (trace || check_model) {
+        on_step = [&](const Transition& t) {
+          if (trace) csv.add(static_cast<int>(e), t);
+          if (check_model && t.result.failure.empty())
+            model_check.add(t.observation, t.action, t.result.observation);
+        };
+      }
       // The same start states at every evaluation, so curves compare like with like.
       episodes.push_back(run_episode(*eval_env, policy,
                                      derive_seed(seed, kEvalEpisode) ^ static_cast<uint64_t>(e), on_step,
@@ -426,6 +436,11 @@ struct Trainer::Impl {
     log->log(env_steps, prefix + "return_std", summary.std_return);
     if (summary.success_rate) log->log(env_steps, prefix + "success_rate", *summary.success_rate);
     if (label.empty()) last_eval = summary.mean_return;
+    if (model_check.size() > 0) {
+      const ModelScore m = model_check.score(*models.dynamics);
+      log->log(env_steps, "eval/model_error_ratio", m.error_ratio);
+      log->log(env_steps, "eval/model_better_components", m.better);
+    }
   }
 
   void evaluate() {
@@ -548,6 +563,15 @@ struct Trainer::Impl {
         });
     // Counted now: the extra test episodes below use the same controller.
     const int64_t test_fallbacks = controller->diagnostics().fallbacks - fallbacks_before;
+    // The test episode is new to the dynamics model (it is stored just below): it scores the model.
+    std::optional<ModelScore> model_score;
+    if (models.dynamics) {
+      ModelCheck check;
+      const size_t usable = episode.size() - (test.failure.empty() || episode.empty() ? 0 : 1);
+      for (size_t k = 0; k < usable; ++k)
+        check.add(episode[k].s, episode[k].a, episode[k].s2);
+      if (check.size() > 0) model_score = check.score(*models.dynamics);
+    }
     store(episode, tester, buffer.get());
     ++episodes;
 
@@ -592,6 +616,10 @@ struct Trainer::Impl {
     // of the online loop).
     log->log(step, "imitation/fallbacks", static_cast<double>(test_fallbacks));
     if (saturated.count) log->log(step, "imitation/saturated_weight", saturated.mean());
+    if (model_score) {
+      log->log(step, "imitation/model_error_ratio", model_score->error_ratio);
+      log->log(step, "imitation/model_better_components", model_score->better);
+    }
     if (std::isfinite(expert_return)) log->log(step, "imitation/expert_return", expert_return);
     auto log_success = [&](const char* tag, const std::optional<bool>& ok) {
       if (ok) log->log(step, tag, *ok ? 1.0 : 0.0);

@@ -3,7 +3,7 @@
 // camera-observed task reports the estimator's error against the simulator and the time per control step.
 //
 //   hlt_rollout --env cartpole_swingup --episodes 10 --seed 0
-//               --policy zero|random|constant:0.5|checkpoint:PATH|expert:PATH|scripted:NAME
+//               --policy zero|random|constant:0.5|checkpoint:PATH|expert:PATH|scripted:NAME|oracle:H,K
 //               [--frame-skip K] [--csv traj.csv] [--video out.mp4] [--strip out.png] [--demos out.hltd]
 //               [--perception] [--models CHECKPOINT --predictions pred.csv]
 #include <algorithm>
@@ -27,6 +27,7 @@
 
 #include "agents/controller_policy.h"
 #include "agents/demonstrations.h"
+#include "agents/model_check.h"
 #include "agents/policy_spec.h"
 #include "agents/saved_policy.h"
 #include "envs/env.h"
@@ -203,12 +204,24 @@ class PredictionCsv {
     for (Eigen::Index i = 0; i < next.size(); ++i)
       text_ += fmt::format(",{:.17g}", next[i]);
     text_ += fmt::format(",{:.17g}\n", r);
+    if (t.result.failure.empty()) check_.add(t.observation, t.action, t.result.observation);
   }
   const std::string& text() const { return text_; }
+  // The dynamics model's one-step errors over the rollout against predicting "no change".
+  void print_check() {
+    if (check_.size() == 0) return;
+    const ModelScore m = check_.score(*models_.dynamics);
+    fmt::print(
+        "dynamics model over {} steps: error / 'no change' {:.3f} (pooled, each component in its own spread), "
+        "better than 'no change' in {} of {} components\n  rms error  {:.4g}\n  rms change {:.4g}\n",
+        m.transitions, m.error_ratio, m.better, m.error_rms.size(), fmt::join(m.error_rms, " "),
+        fmt::join(m.change_rms, " "));
+  }
 
  private:
   SavedModels models_;
   std::string text_;
+  ModelCheck check_;
 };
 
 int run(Options o, bool frame_skip_given) {
@@ -315,6 +328,7 @@ int run(Options o, bool frame_skip_given) {
     fmt::print("success {} of {} episodes ({:.0f} %)\n", succeeded, episodes.size(), 100 * *sum.success_rate);
   }
   if (perception) perception->print();
+  if (predictions) predictions->print_check();
 
   if (demos) {
     demos->save(o.demos);
@@ -358,7 +372,8 @@ int run_tool(int argc, char** argv) {
   app.add_flag("--list", list, "List the registered environments and exit");
   app.add_option("--env", o.env, "Environment name (see --list)");
   app.add_option("--policy", o.policy,
-                 "zero | random | constant:V[,V2,...] | checkpoint:PATH | expert:PATH | scripted:NAME")
+                 "zero | random | constant:V[,V2,...] | checkpoint:PATH | expert:PATH | scripted:NAME | "
+                 "oracle:H,K[,LAMBDA[,NOISE]] (MPPI on the simulator itself)")
       ->capture_default_str();
   app.add_option("--episodes", o.episodes, "Number of episodes")->capture_default_str();
   app.add_option("--seed", o.seed, "Seed of the first reset (and of the random policy)")

@@ -129,9 +129,20 @@ TEST(LearningLoops, HybridImitationLogsItsTagsAndResumesExactly) {
   EXPECT_EQ(tags.at("imitation/demonstrations"), (std::vector<double>{1, 2, 3}));
   for (const char* tag : {"imitation/test_return", "imitation/policy_return", "imitation/expert_return",
                           "imitation/demonstration_return", "imitation/fallbacks", "loss/bc", "loss/dynamics",
-                          "loss/reward", "time/iteration_seconds"}) {
+                          "loss/reward", "time/iteration_seconds", "imitation/model_error_ratio",
+                          "imitation/model_better_components"}) {
     ASSERT_TRUE(tags.count(tag)) << tag;
     EXPECT_EQ(tags.at(tag).size(), 3u) << tag;
+  }
+  // The dynamics model scored on each test episode before it trains on it: a finite, positive ratio, and a
+  // count of the pendulum's three components.
+  for (double r : tags.at("imitation/model_error_ratio")) {
+    EXPECT_TRUE(std::isfinite(r));
+    EXPECT_GT(r, 0.0);
+  }
+  for (double b : tags.at("imitation/model_better_components")) {
+    EXPECT_GE(b, 0.0);
+    EXPECT_LE(b, 3.0);
   }
   for (double f : tags.at("imitation/fallbacks"))
     EXPECT_LE(f, 30.0);                                // steps of the 30-step test episode only
