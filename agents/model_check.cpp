@@ -29,11 +29,13 @@ void ModelCheck::clear() {
   size_ = 0;
 }
 
-ModelScore ModelCheck::score(DynamicsModelImpl& model) const {
+ModelScore ModelCheck::score(DynamicsModelImpl& model, const std::optional<Eigen::VectorXd>& units) const {
   check(size_ > 0, "ModelCheck: no transitions to score");
   check(model.options().state_dim == n_ && model.options().action_dim == m_,
         "ModelCheck: the model maps {} + {} values, the transitions have {} + {}", model.options().state_dim,
         model.options().action_dim, n_, m_);
+  check(!units || (units->size() == n_ && (units->array() > 0).all()),
+        "ModelCheck: units must be {} positive values", n_);
   c10::InferenceMode guard;
   const auto rows = [&](const std::vector<double>& v, int64_t width) {
     return torch::from_blob(const_cast<double*>(v.data()), {size_, width}, torch::kFloat64)
@@ -50,12 +52,19 @@ ModelScore ModelCheck::score(DynamicsModelImpl& model) const {
   s.error_rms = ((pred - next).array().square().colwise().mean()).sqrt().transpose();
   s.change_rms = ((next - obs).array().square().colwise().mean()).sqrt().transpose();
   s.spread = ((obs.rowwise() - obs.colwise().mean()).array().square().colwise().mean()).sqrt().transpose();
+  if (units) {
+    s.unit = *units;
+  } else {
+    // Numerically constant components get no unit (0) and stay out of the ratio.
+    const double floor = 1e-6 * s.spread.maxCoeff();
+    s.unit = (s.spread.array() > floor).select(s.spread, 0.0);
+  }
   double error = 0, change = 0;
   for (int64_t i = 0; i < n_; ++i) {
     if (s.error_rms[i] < s.change_rms[i]) ++s.better;
-    if (s.spread[i] > 0) {
-      error += std::pow(s.error_rms[i] / s.spread[i], 2);
-      change += std::pow(s.change_rms[i] / s.spread[i], 2);
+    if (s.unit[i] > 0) {
+      error += std::pow(s.error_rms[i] / s.unit[i], 2);
+      change += std::pow(s.change_rms[i] / s.unit[i], 2);
     }
   }
   if (change > 0) s.error_ratio = std::sqrt(error / change);

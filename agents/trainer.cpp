@@ -399,6 +399,13 @@ struct Trainer::Impl {
     }
   }
 
+  // What the model check measures each observation component's errors in: the task's declared ranges, if
+  // it declares them (else ModelCheck uses the components' spread).
+  std::optional<Eigen::VectorXd> model_units() const {
+    if (const std::optional<ObservationScale> s = eval_env->observation_scale()) return s->scale;
+    return std::nullopt;
+  }
+
   // One evaluation of `ctrl`: eval.episodes episodes from the fixed start states, logged under `label`.
   void evaluate_controller(const std::string& label, Controller& ctrl) {
     const int64_t episodes_per_eval = config.get_int("eval.episodes");
@@ -437,7 +444,7 @@ struct Trainer::Impl {
     if (summary.success_rate) log->log(env_steps, prefix + "success_rate", *summary.success_rate);
     if (label.empty()) last_eval = summary.mean_return;
     if (model_check.size() > 0) {
-      const ModelScore m = model_check.score(*models.dynamics);
+      const ModelScore m = model_check.score(*models.dynamics, model_units());
       log->log(env_steps, "eval/model_error_ratio", m.error_ratio);
       log->log(env_steps, "eval/model_better_components", m.better);
     }
@@ -570,7 +577,7 @@ struct Trainer::Impl {
       const size_t usable = episode.size() - (test.failure.empty() || episode.empty() ? 0 : 1);
       for (size_t k = 0; k < usable; ++k)
         check.add(episode[k].s, episode[k].a, episode[k].s2);
-      if (check.size() > 0) model_score = check.score(*models.dynamics);
+      if (check.size() > 0) model_score = check.score(*models.dynamics, model_units());
     }
     store(episode, tester, buffer.get());
     ++episodes;

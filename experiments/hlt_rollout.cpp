@@ -208,11 +208,13 @@ class PredictionCsv {
   }
   const std::string& text() const { return text_; }
   // The dynamics model's one-step errors over the rollout against predicting "no change".
-  void print_check() {
+  void print_check(const Env& env) {
     if (check_.size() == 0) return;
-    const ModelScore m = check_.score(*models_.dynamics);
+    std::optional<Eigen::VectorXd> units;
+    if (const std::optional<ObservationScale> s = env.observation_scale()) units = s->scale;
+    const ModelScore m = check_.score(*models_.dynamics, units);
     fmt::print(
-        "dynamics model over {} steps: error / 'no change' {:.3f} (pooled, each component in its own spread), "
+        "dynamics model over {} steps: error / 'no change' {:.3f} (pooled, each component in its unit), "
         "better than 'no change' in {} of {} components\n  rms error  {:.4g}\n  rms change {:.4g}\n",
         m.transitions, m.error_ratio, m.better, m.error_rms.size(), fmt::join(m.error_rms, " "),
         fmt::join(m.change_rms, " "));
@@ -328,7 +330,7 @@ int run(Options o, bool frame_skip_given) {
     fmt::print("success {} of {} episodes ({:.0f} %)\n", succeeded, episodes.size(), 100 * *sum.success_rate);
   }
   if (perception) perception->print();
-  if (predictions) predictions->print_check();
+  if (predictions) predictions->print_check(*env);
 
   if (demos) {
     demos->save(o.demos);

@@ -1,5 +1,6 @@
 // ModelCheck (agents/model_check.h): the per-component errors and the ratio against "no change" on models
-// whose predictions are known: one that predicts no change, one that is exact, one that is half right.
+// whose predictions are known (no change, exact in one component, half right, drifting), in the components'
+// own spreads and in declared units.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -84,6 +85,40 @@ TEST(ModelCheck, RatioPoolsTheComponentsEachInItsOwnSpread) {
   EXPECT_NEAR(drift.error_rms[1], 0.01, 1e-6);
   EXPECT_NEAR(drift.error_ratio, std::hypot(0.01 / s0, 0.3 / s2) / std::hypot(0.1 / s0, 0.3 / s2), 1e-6);
   EXPECT_GT(drift.error_ratio, exact0.error_ratio);
+}
+
+// Component 1 stands still at 5 up to 1e-12 jitter (as a block that is never touched does in a simulator).
+ModelCheck transitions_with_a_still_component() {
+  ModelCheck c;
+  for (int i = 0; i < 10; ++i) {
+    const Eigen::Vector3d o(i, 5.0 + 1e-12 * i, 0.5 * i);
+    const Eigen::VectorXd a = Eigen::VectorXd::Constant(1, i % 2 == 0 ? 1.0 : -1.0);
+    c.add(o, a, o + Eigen::Vector3d(0.1, 0.0, 0.3 * a[0]));
+  }
+  return c;
+}
+
+TEST(ModelCheck, ANumericallyConstantComponentIsLeftOutUnlessUnitsAreDeclared) {
+  // The model moves the still component by 1 mm per step. In its own spread (1e-12) that would be an error
+  // of 1e9 spreads; it counts as constant instead, and the ratio is the other two components'.
+  const ModelCheck c = transitions_with_a_still_component();
+  DynamicsModel moving = constant_shift_model({0.1f, 0.001f, 0});
+  const ModelScore own = c.score(*moving);
+  EXPECT_EQ(own.unit[1], 0.0);
+  const double s0 = std::sqrt(8.25), s2 = 0.5 * s0;
+  EXPECT_NEAR(own.error_ratio, std::hypot(own.error_rms[0] / s0, 0.3 / s2) / std::hypot(0.1 / s0, 0.3 / s2),
+              1e-6);
+  EXPECT_LT(own.error_ratio, 1.0);
+  // With declared units (metres for all three) the millimetre counts, at its size.
+  const ModelScore declared = c.score(*moving, Eigen::Vector3d(1.0, 1.0, 1.0));
+  EXPECT_EQ(declared.unit, Eigen::VectorXd(Eigen::Vector3d(1.0, 1.0, 1.0)));
+  EXPECT_NEAR(declared.error_rms[1], 0.001, 1e-5);
+  EXPECT_NEAR(declared.error_ratio,
+              std::sqrt(std::pow(declared.error_rms[0], 2) + std::pow(declared.error_rms[1], 2) + 0.09) /
+                  std::sqrt(0.01 + 0.09),
+              1e-6);
+  EXPECT_THROW(c.score(*moving, Eigen::Vector3d(1.0, 0.0, 1.0)), Error);
+  EXPECT_THROW(c.score(*moving, Eigen::Vector2d(1.0, 1.0)), Error);
 }
 
 TEST(ModelCheck, RefusesMismatchedSizesAndAnEmptyCheck) {
