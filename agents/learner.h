@@ -36,6 +36,9 @@ class Learner {
   virtual const char* learner_name() const = 0;
   // One gradient step on `batch`; the same tags in the same order at every call.
   virtual NamedLosses train(const Batch& batch) = 0;
+  // Starts its optimizer afresh (moments forgotten, parameters kept). The imitation loop calls it before an
+  // iteration's updates where the config asks (imitation.restart_model_optimizer); no-op by default.
+  virtual void restart_optimizer() {}
   // Everything the learner needs to continue exactly, except the shared networks.
   virtual void save_training_state(CheckpointWriter& writer) const = 0;
   virtual void load_training_state(CheckpointReader& reader) = 0;

@@ -65,6 +65,9 @@ Config make_train_config() {
       .add_int("imitation.model_updates", 500,
                "imitation methods: dynamics + reward model updates per iteration (batches from D)", 0,
                1000000)
+      .add_bool("imitation.restart_model_optimizer", false,
+                "imitation methods: start the models' optimizer afresh (moments forgotten, weights kept) "
+                "before each iteration's updates")
       .add_bool("imitation.intended_labels", false,
                 "imitation methods: behaviour cloning learns from a noisy demonstrator's noiseless action "
                 "where it has one (the scripted experts; DART), not from the executed action; the models "

@@ -553,6 +553,10 @@ struct Trainer::Impl {
           config.get_bool("imitation.intended_labels"));
 
     clear_losses();
+    if (config.get_bool("imitation.restart_model_optimizer")) {
+      for (ActiveLearner& l : learners)
+        if (std::string(l.learner->learner_name()) == "model") l.learner->restart_optimizer();
+    }
     train_learners();
 
     const uint64_t start = derive_seed(seed, kEvalEpisode) ^ i;

@@ -50,6 +50,12 @@ void FlatAdam::zero_grad() {
   grad_.zero_();
 }
 
+void FlatAdam::restart() {
+  exp_avg_.zero_();
+  exp_avg_sq_.zero_();
+  step_ = 0;
+}
+
 void FlatAdam::step() {
   ++step_;
   const double bc1 = 1.0 - std::pow(options_.beta1, static_cast<double>(step_));

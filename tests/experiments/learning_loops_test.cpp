@@ -176,6 +176,28 @@ TEST(LearningLoops, HybridImitationLogsItsTagsAndResumesExactly) {
             (std::vector<double>{1, 2, 3, 4}));
 }
 
+// imitation.restart_model_optimizer: the first iteration's updates start from a fresh optimizer either way,
+// so its numbers are the same; from the second on the models' updates differ (their optimizer forgot the
+// first iteration's moments), and a run stopped after two iterations and resumed repeats the straight one.
+TEST(LearningLoops, RestartingTheModelOptimizerChangesOnlyLaterIterationsAndResumesExactly) {
+  const std::string expert = write_pendulum_expert(fresh_dir("restart_expert"));
+  const std::string plain = fresh_dir("restart_off"), restarted = fresh_dir("restart_on"),
+                    resumed = fresh_dir("restart_resumed");
+  const std::string args = imitation_args("hybrid-imitation", expert);
+  ASSERT_EQ(run(kTrain + args + " --out " + plain).code, 0);
+  ASSERT_EQ(run(kTrain + args + " imitation.restart_model_optimizer=true --out " + restarted).code, 0);
+  const auto off = by_tag(plain + "/scalars.csv"), on = by_tag(restarted + "/scalars.csv");
+  ASSERT_EQ(on.at("loss/dynamics").size(), 3u);
+  EXPECT_EQ(on.at("loss/dynamics")[0], off.at("loss/dynamics")[0]);
+  EXPECT_NE(on.at("loss/dynamics")[1], off.at("loss/dynamics")[1]);
+  EXPECT_NE(on.at("loss/dynamics")[2], off.at("loss/dynamics")[2]);
+  Result r = run(kTrain + args + " imitation.restart_model_optimizer=true --steps 2 --out " + resumed);
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run(kTrain + " --resume " + resumed + " --steps 3 --no-progress");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(test::comparable_rows(resumed + "/scalars.csv"), test::comparable_rows(restarted + "/scalars.csv"));
+}
+
 TEST(LearningLoops, ImitationEvalVariantsChangeNoOtherNumber) {
   const std::string expert = write_pendulum_expert(fresh_dir("imitation_expert3"));
   const std::string args =

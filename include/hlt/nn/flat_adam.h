@@ -40,6 +40,10 @@ class FlatAdam {
   void zero_grad();
   // One Adam step from the accumulated gradients.
   void step();
+  // Forgets the moments and the step count (the parameters stay): the next step() is a fresh optimizer's
+  // first. For a fit to data that changed as a whole, where moments of the old data would scale the new
+  // steps (ModelLearner::restart_optimizer).
+  void restart();
 
   int64_t steps() const { return step_; }
   int64_t size() const { return param_.numel(); }
