@@ -14,8 +14,8 @@ void ModelCheck::add(const Eigen::VectorXd& o, const Eigen::VectorXd& a, const E
     m_ = a.size();
   }
   check(o.size() == n_ && next.size() == n_ && a.size() == m_,
-        "ModelCheck: transition of sizes {}, {}, {}; the first had {}, {}, {}", o.size(), a.size(), next.size(),
-        n_, m_, n_);
+        "ModelCheck: transition of sizes {}, {}, {}; the first had {}, {}, {}", o.size(), a.size(),
+        next.size(), n_, m_, n_);
   observations_.insert(observations_.end(), o.data(), o.data() + n_);
   actions_.insert(actions_.end(), a.data(), a.data() + m_);
   next_.insert(next_.end(), next.data(), next.data() + n_);
@@ -41,7 +41,8 @@ ModelScore ModelCheck::score(DynamicsModelImpl& model, const std::optional<Eigen
     return torch::from_blob(const_cast<double*>(v.data()), {size_, width}, torch::kFloat64)
         .to(model.fc1->weight.scalar_type());
   };
-  const torch::Tensor predicted = model.forward(rows(observations_, n_), rows(actions_, m_)).to(torch::kFloat64);
+  const torch::Tensor predicted =
+      model.forward(rows(observations_, n_), rows(actions_, m_)).to(torch::kFloat64);
   using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
   const torch::Tensor p = predicted.contiguous();
   const Eigen::Map<const RowMatrix> pred(p.data_ptr<double>(), size_, n_);

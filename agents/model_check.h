@@ -44,7 +44,8 @@ class ModelCheck {
   // would otherwise turn a micrometre of predicted motion into an arbitrarily large ratio). Preconditions:
   // size() > 0, the model's state and action sizes are the transitions', units (if given) has one positive
   // entry per component.
-  ModelScore score(DynamicsModelImpl& model, const std::optional<Eigen::VectorXd>& units = std::nullopt) const;
+  ModelScore score(DynamicsModelImpl& model,
+                   const std::optional<Eigen::VectorXd>& units = std::nullopt) const;
 
  private:
   std::vector<double> observations_, actions_, next_;

@@ -57,7 +57,10 @@ std::unique_ptr<Env> copy_of(const Env& env) {
 }  // namespace
 
 OraclePolicy::OraclePolicy(const Env& env, const OracleOptions& options, uint64_t seed)
-    : env_(env), sim_(copy_of(env)), options_(options), rng_(seed),
+    : env_(env),
+      sim_(copy_of(env)),
+      options_(options),
+      rng_(seed),
       plan_(Eigen::MatrixXd::Zero(options.horizon, env.action_dim())) {}
 
 std::string OraclePolicy::describe() const {

@@ -10,9 +10,9 @@
 #include <functional>
 
 #include "agents/controller_policy.h"
-#include "agents/model_check.h"
 #include "agents/learner.h"
 #include "agents/methods.h"
+#include "agents/model_check.h"
 #include "agents/policy_spec.h"
 #include "agents/train_config.h"
 #include "envs/registry.h"

@@ -3,9 +3,10 @@
 // target, each (dx, dy, dyaw), followed by what the robot knows of itself: the tool's position in the
 // workspace (x, y, from the workspace's centre) and the filtered velocity command it is moving at (vx, vy).
 // Without the last four the next state is not a function of state and action (the workspace clamp and the
-// filter decide how far the tool moves), and a learned model cannot fit it. The reward -5 |p_b2t| - 10 |p_ee2b| - 0.01 |a|^2; 100 steps of 0.1 s; block and target
-// placed at random in the workspace at reset (the block 7 cm inside its edges, so that the tool can reach
-// round it); success when the block's centre ends within 3 cm of the target.
+// filter decide how far the tool moves), and a learned model cannot fit it. The reward -5 |p_b2t| - 10
+// |p_ee2b| - 0.01 |a|^2; 100 steps of 0.1 s; block and target placed at random in the workspace at reset (the
+// block 7 cm inside its edges, so that the tool can reach round it); success when the block's centre ends
+// within 3 cm of the target.
 #pragma once
 
 #include <memory>

@@ -48,42 +48,35 @@ TEST(FlatAdam, FollowsTorchAdam) {
   EXPECT_LT(b.loss().item<double>(), 0.9 * Problem(5).loss().item<double>());
 }
 
+// `n` steps of `opt` on `p`'s loss.
+void train(FlatAdam& opt, Problem& p, int n) {
+  for (int step = 0; step < n; ++step) {
+    opt.zero_grad();
+    p.loss().backward();
+    opt.step();
+  }
+}
+
 // After restart() the optimizer steps as a new one built on the current parameters does: 20 steps of one,
 // restart, 20 more, against 20 steps of one, then a fresh one (rebinding the parameters) for 20 more.
 TEST(FlatAdam, RestartStepsAsAFreshOptimizer) {
   Problem a(7), b(7);
   FlatAdam first(a.net->parameters(), FlatAdamOptions{0.01});
   FlatAdam flat(b.net->parameters(), FlatAdamOptions{0.01});
-  for (int step = 0; step < 20; ++step) {
-    first.zero_grad();
-    a.loss().backward();
-    first.step();
-    flat.zero_grad();
-    b.loss().backward();
-    flat.step();
-  }
+  train(first, a, 20);
+  train(flat, b, 20);
   flat.restart();
   EXPECT_EQ(flat.steps(), 0);
   FlatAdam fresh(a.net->parameters(), FlatAdamOptions{0.01});
-  for (int step = 0; step < 20; ++step) {
-    fresh.zero_grad();
-    a.loss().backward();
-    fresh.step();
-    flat.zero_grad();
-    b.loss().backward();
-    flat.step();
-  }
+  train(fresh, a, 20);
+  train(flat, b, 20);
   const auto pa = a.net->parameters(), pb = b.net->parameters();
   for (size_t i = 0; i < pa.size(); ++i)
     EXPECT_TRUE(torch::equal(pa[i], pb[i])) << i << "\n" << pa[i] - pb[i];
   // Without the restart the second half differs (the moments of the first 20 steps scale it).
   Problem c(7);
   FlatAdam kept(c.net->parameters(), FlatAdamOptions{0.01});
-  for (int step = 0; step < 40; ++step) {
-    kept.zero_grad();
-    c.loss().backward();
-    kept.step();
-  }
+  train(kept, c, 40);
   EXPECT_FALSE(torch::allclose(c.net->parameters()[0], pb[0], 1e-4, 1e-6));
 }
 

@@ -127,10 +127,10 @@ TEST(LearningLoops, HybridImitationLogsItsTagsAndResumesExactly) {
       << r.output;
   const auto tags = by_tag(dir + "/scalars.csv");
   EXPECT_EQ(tags.at("imitation/demonstrations"), (std::vector<double>{1, 2, 3}));
-  for (const char* tag : {"imitation/test_return", "imitation/policy_return", "imitation/expert_return",
-                          "imitation/demonstration_return", "imitation/fallbacks", "loss/bc", "loss/dynamics",
-                          "loss/reward", "time/iteration_seconds", "imitation/model_error_ratio",
-                          "imitation/model_better_components"}) {
+  for (const char* tag :
+       {"imitation/test_return", "imitation/policy_return", "imitation/expert_return",
+        "imitation/demonstration_return", "imitation/fallbacks", "loss/bc", "loss/dynamics", "loss/reward",
+        "time/iteration_seconds", "imitation/model_error_ratio", "imitation/model_better_components"}) {
     ASSERT_TRUE(tags.count(tag)) << tag;
     EXPECT_EQ(tags.at(tag).size(), 3u) << tag;
   }
@@ -195,7 +195,8 @@ TEST(LearningLoops, RestartingTheModelOptimizerChangesOnlyLaterIterationsAndResu
   ASSERT_EQ(r.code, 0) << r.output;
   r = run(kTrain + " --resume " + resumed + " --steps 3 --no-progress");
   ASSERT_EQ(r.code, 0) << r.output;
-  EXPECT_EQ(test::comparable_rows(resumed + "/scalars.csv"), test::comparable_rows(restarted + "/scalars.csv"));
+  EXPECT_EQ(test::comparable_rows(resumed + "/scalars.csv"),
+            test::comparable_rows(restarted + "/scalars.csv"));
 }
 
 TEST(LearningLoops, ImitationEvalVariantsChangeNoOtherNumber) {
