@@ -72,4 +72,9 @@ ModelScore ModelCheck::score(DynamicsModelImpl& model, const std::optional<Eigen
   return s;
 }
 
+ModelScore ModelCheck::score(DynamicsModelImpl& model, const Env& env) const {
+  const std::optional<ObservationScale> declared = env.observation_scale();
+  return score(model, declared ? std::optional<Eigen::VectorXd>(declared->scale) : std::nullopt);
+}
+
 }  // namespace hlt

@@ -11,6 +11,7 @@
 
 #include <Eigen/Core>
 
+#include "envs/env.h"
 #include "hlt/nn/dynamics_model.h"
 
 namespace hlt {
@@ -46,6 +47,8 @@ class ModelCheck {
   // entry per component.
   ModelScore score(DynamicsModelImpl& model,
                    const std::optional<Eigen::VectorXd>& units = std::nullopt) const;
+  // The same, in the units `env` declares (its observation_scale()'s scale), if it declares any.
+  ModelScore score(DynamicsModelImpl& model, const Env& env) const;
 
  private:
   std::vector<double> observations_, actions_, next_;

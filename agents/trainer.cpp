@@ -399,11 +399,10 @@ struct Trainer::Impl {
     }
   }
 
-  // What the model check measures each observation component's errors in: the task's declared ranges, if
-  // it declares them (else ModelCheck uses the components' spread).
-  std::optional<Eigen::VectorXd> model_units() const {
-    if (const std::optional<ObservationScale> s = eval_env->observation_scale()) return s->scale;
-    return std::nullopt;
+  // The dynamics model's check, logged as <prefix>model_error_ratio and <prefix>model_better_components.
+  void log_model_score(int64_t step, const std::string& prefix, const ModelScore& m) {
+    log->log(step, prefix + "model_error_ratio", m.error_ratio);
+    log->log(step, prefix + "model_better_components", m.better);
   }
 
   // One evaluation of `ctrl`: eval.episodes episodes from the fixed start states, logged under `label`.
@@ -443,11 +442,8 @@ struct Trainer::Impl {
     log->log(env_steps, prefix + "return_std", summary.std_return);
     if (summary.success_rate) log->log(env_steps, prefix + "success_rate", *summary.success_rate);
     if (label.empty()) last_eval = summary.mean_return;
-    if (model_check.size() > 0) {
-      const ModelScore m = model_check.score(*models.dynamics, model_units());
-      log->log(env_steps, "eval/model_error_ratio", m.error_ratio);
-      log->log(env_steps, "eval/model_better_components", m.better);
-    }
+    if (model_check.size() > 0)
+      log_model_score(env_steps, "eval/", model_check.score(*models.dynamics, *eval_env));
   }
 
   void evaluate() {
@@ -581,7 +577,7 @@ struct Trainer::Impl {
       const size_t usable = episode.size() - (test.failure.empty() || episode.empty() ? 0 : 1);
       for (size_t k = 0; k < usable; ++k)
         check.add(episode[k].s, episode[k].a, episode[k].s2);
-      if (check.size() > 0) model_score = check.score(*models.dynamics, model_units());
+      if (check.size() > 0) model_score = check.score(*models.dynamics, *eval_env);
     }
     store(episode, tester, buffer.get());
     ++episodes;
@@ -627,10 +623,7 @@ struct Trainer::Impl {
     // of the online loop).
     log->log(step, "imitation/fallbacks", static_cast<double>(test_fallbacks));
     if (saturated.count) log->log(step, "imitation/saturated_weight", saturated.mean());
-    if (model_score) {
-      log->log(step, "imitation/model_error_ratio", model_score->error_ratio);
-      log->log(step, "imitation/model_better_components", model_score->better);
-    }
+    if (model_score) log_model_score(step, "imitation/", *model_score);
     if (std::isfinite(expert_return)) log->log(step, "imitation/expert_return", expert_return);
     auto log_success = [&](const char* tag, const std::optional<bool>& ok) {
       if (ok) log->log(step, tag, *ok ? 1.0 : 0.0);

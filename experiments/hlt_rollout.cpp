@@ -210,9 +210,7 @@ class PredictionCsv {
   // The dynamics model's one-step errors over the rollout against predicting "no change".
   void print_check(const Env& env) {
     if (check_.size() == 0) return;
-    std::optional<Eigen::VectorXd> units;
-    if (const std::optional<ObservationScale> s = env.observation_scale()) units = s->scale;
-    const ModelScore m = check_.score(*models_.dynamics, units);
+    const ModelScore m = check_.score(*models_.dynamics, env);
     fmt::print(
         "dynamics model over {} steps: error / 'no change' {:.3f} (pooled, each component in its unit), "
         "better than 'no change' in {} of {} components\n  rms error  {:.4g}\n  rms change {:.4g}\n",

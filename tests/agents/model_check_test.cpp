@@ -8,16 +8,17 @@
 #include <torch/torch.h>
 
 #include "agents/model_check.h"
+#include "envs/registry.h"
 #include "hlt/util/error.h"
 
 namespace hlt {
 namespace {
 
 // A dynamics model s' = s + W2 relu(W1 [s, a] + b1) + b2 set by hand: with W2 = 0 it predicts s' = s + b2.
-DynamicsModel constant_shift_model(const std::vector<float>& shift) {
+DynamicsModel constant_shift_model(const std::vector<float>& shift, int64_t action_dim = 1) {
   DynamicsModelOptions o;
   o.state_dim = static_cast<int64_t>(shift.size());
-  o.action_dim = 1;
+  o.action_dim = action_dim;
   o.hidden = 4;
   o.activation = Activation::kRelu;
   DynamicsModel m(o);
@@ -119,6 +120,31 @@ TEST(ModelCheck, ANumericallyConstantComponentIsLeftOutUnlessUnitsAreDeclared) {
               1e-6);
   EXPECT_THROW(c.score(*moving, Eigen::Vector3d(1.0, 0.0, 1.0)), Error);
   EXPECT_THROW(c.score(*moving, Eigen::Vector2d(1.0, 1.0)), Error);
+}
+
+// With an environment, the units are the ones it declares (block_push), or none (pendulum: the spread).
+TEST(ModelCheck, AnEnvironmentGivesItsDeclaredUnits) {
+  for (const char* name : {"block_push", "pendulum"}) {
+    auto env = make_env(name);
+    const int n = env->observation_dim();
+    ModelCheck c;
+    Eigen::VectorXd o = env->reset(3);
+    for (int t = 0; t < 5; ++t) {
+      const Eigen::VectorXd a = Eigen::VectorXd::Constant(env->action_dim(), 0.5);
+      const StepResult r = env->step(a);
+      c.add(o, a, r.observation);
+      o = r.observation;
+    }
+    DynamicsModel model =
+        constant_shift_model(std::vector<float>(static_cast<size_t>(n), 0.01f), env->action_dim());
+    const std::optional<ObservationScale> declared = env->observation_scale();
+    const ModelScore with_env = c.score(*model, *env);
+    const ModelScore expected =
+        c.score(*model, declared ? std::optional<Eigen::VectorXd>(declared->scale) : std::nullopt);
+    EXPECT_EQ(with_env.unit, expected.unit) << name;
+    EXPECT_EQ(with_env.error_ratio, expected.error_ratio) << name;
+    EXPECT_EQ(declared.has_value(), std::string(name) == "block_push");
+  }
 }
 
 TEST(ModelCheck, RefusesMismatchedSizesAndAnEmptyCheck) {
