@@ -16,6 +16,13 @@ ModelLearner::ModelLearner(DynamicsModel dynamics, RewardModel reward, const Mod
   for (auto& p : reward_->parameters())
     params.push_back(p);
   optimizer_ = std::make_unique<FlatAdam>(params, FlatAdamOptions{options.lr});
+  // Read after the optimizer rebinds the parameters to its flat buffer, so the views stay the live ones.
+  if (options_.weight_decay > 0) {
+    for (const auto& p : dynamics_->named_parameters(/*recurse=*/true)) {
+      const std::string& name = p.key();
+      if (name.size() >= 6 && name.compare(name.size() - 6, 6, "weight") == 0) decayed_.push_back(p.value());
+    }
+  }
 }
 
 ModelLosses ModelLearner::update(const Batch& b) {
@@ -24,6 +31,8 @@ ModelLosses ModelLearner::update(const Batch& b) {
   c10::InferenceMode guard;
   ModelLosses losses;
   losses.dynamics = dynamics_->loss_with_gradient(b.states, b.actions, b.next_states);
+  for (auto& w : decayed_)
+    w.mutable_grad().add_(w, options_.weight_decay);
   losses.reward =
       reward_->td_loss_with_gradient(b.states, b.actions, b.rewards, b.next_states, b.next_actions, b.dones,
                                      options_.reward_gamma, options_.reward_weight);

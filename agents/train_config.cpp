@@ -91,6 +91,8 @@ Config make_train_config() {
                   "discount of the reward model's TD target (0: plain regression)", 0.0, 1.0)
       .add_double("model.reward_weight", 0.5, "weight of the reward TD loss in the joint model loss", 0.0,
                   1000.0)
+      .add_double("model.weight_decay", 0.0,
+                  "L2 penalty on the dynamics model's weight matrices (0: none, the paper's loss)", 0.0, 1.0)
       .add_bool("model.normalize_inputs", false,
                 "the dynamics and reward models see the state as policy.normalize_inputs shows it to the "
                 "policy (the environment's declared observation ranges); the dynamics' residual stays raw")

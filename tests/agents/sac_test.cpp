@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 #include <torch/torch.h>
+#include <map>
 
 #include <ATen/CPUGeneratorImpl.h>
 
@@ -191,6 +192,52 @@ TEST(ModelLearner, FitsLinearDynamicsAndReward) {
   EXPECT_NEAR(pred[0][0].item<float>(), 0.35, 0.02);
   EXPECT_NEAR(pred[0][1].item<float>(), -0.23, 0.02);
   EXPECT_NEAR(rew->forward(s, a).item<float>(), -0.09, 0.03);
+}
+
+// The decay adds weight_decay * W to the likelihood's gradient of each weight matrix, and nothing to the
+// biases, the log-std or the reward model: two learners from identical networks, one batch, compared.
+TEST(ModelLearner, WeightDecayAddsTheL2GradientToTheDynamicsWeightsOnly) {
+  const int n = 3, m = 2;
+  const double wd = 0.01;
+  auto make = [&](double decay, DynamicsModel* dyn, RewardModel* rew) {
+    torch::manual_seed(7);
+    *dyn = DynamicsModel(DynamicsModelOptions{n, m, 16, Activation::kRelu});
+    *rew = RewardModel(RewardModelOptions{n, m, 16});
+    ModelLearnerOptions o;
+    o.weight_decay = decay;
+    return std::make_unique<ModelLearner>(*dyn, *rew, o);
+  };
+  DynamicsModel dyn_a(nullptr), dyn_b(nullptr);
+  RewardModel rew_a(nullptr), rew_b(nullptr);
+  auto plain = make(0.0, &dyn_a, &rew_a);
+  auto decayed = make(wd, &dyn_b, &rew_b);
+  ReplayBuffer rb(64, n, m, 0);
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int i = 0; i < 64; ++i) {
+    double s[3] = {u(rng), u(rng), u(rng)}, a[2] = {u(rng), u(rng)};
+    double s2[3] = {s[0] + 0.1 * a[0], s[1] * s[2], s[2] - 0.1 * a[1]};
+    rb.add(s, a, s[0], s2, a, false);
+  }
+  std::map<std::string, torch::Tensor> before;
+  for (const auto& p : dyn_b->named_parameters())
+    before[p.key()] = p.value().detach().clone();
+  const Batch batch = rb.all();
+  plain->update(batch);
+  decayed->update(batch);
+  const auto pa = dyn_a->named_parameters(), pb = dyn_b->named_parameters();
+  int weights = 0;
+  for (const auto& p : pb) {
+    const torch::Tensor diff = p.value().grad() - pa[p.key()].grad();
+    const bool is_weight = p.key().size() >= 6 && p.key().substr(p.key().size() - 6) == "weight";
+    const torch::Tensor expected = is_weight ? wd * before[p.key()] : torch::zeros_like(diff);
+    EXPECT_TRUE(torch::allclose(diff, expected, 1e-6, 1e-7)) << p.key();
+    weights += is_weight;
+  }
+  EXPECT_EQ(weights, 2);  // fc1 and fc2
+  const auto ra = rew_a->named_parameters(), rb2 = rew_b->named_parameters();
+  for (const auto& p : rb2)
+    EXPECT_TRUE(torch::equal(p.value().grad(), ra[p.key()].grad())) << p.key();
 }
 
 }  // namespace
