@@ -15,11 +15,15 @@ BehaviourCloning::BehaviourCloning(GaussianPolicy policy, const BehaviourCloning
 at::Tensor BehaviourCloning::nll(const at::Tensor& states, const at::Tensor& actions) {
   check(states.dim() == 2 && actions.dim() == 2 && states.size(0) == actions.size(0) && states.size(0) > 0,
         "behaviour cloning needs [B, n] states and [B, m] actions");
-  if (!censor_saturated_) return -policy_->log_prob(states, actions).mean();
-  auto [mean, log_std] = policy_->forward(states);
-  const at::Tensor saturated = actions.abs() >= kSaturatedAt;
+  const GaussianPolicyImpl::FitOutputs fit = policy_->forward_for_fit(states);
+  const at::Tensor &mean = fit.mean, &log_std = fit.log_std;
+  // The overshoot itself, not its square: its gradient stays 1 up to the bound, so the head crosses back
+  // into range (where the likelihood takes over) instead of creeping towards the bound. Zero in range.
+  const at::Tensor penalty = fit.overshoot.sum(-1).mean();
   const at::Tensor a = actions.clamp(-1.0 + kTanhEpsilon, 1.0 - kTanhEpsilon);
   const at::Tensor u = torch::atanh(a);
+  if (!censor_saturated_) return -GaussianPolicyImpl::squashed_log_prob(u, a, mean, log_std).mean() + penalty;
+  const at::Tensor saturated = actions.abs() >= kSaturatedAt;
   const at::Tensor z = (u - mean) * torch::exp(-log_std);
   const at::Tensor density =
       -0.5 * z.square() - log_std - 0.5 * std::log(2.0 * M_PI) - torch::log(1.0 - a.square() + kTanhEpsilon);
@@ -27,7 +31,7 @@ at::Tensor BehaviourCloning::nll(const at::Tensor& states, const at::Tensor& act
   const at::Tensor sign = torch::sign(actions);
   const at::Tensor tail =
       torch::special::log_ndtr((sign * mean - std::atanh(kCensorLevel)) * torch::exp(-log_std));
-  return -torch::where(saturated, tail, density).sum(-1).mean();
+  return -torch::where(saturated, tail, density).sum(-1).mean() + penalty;
 }
 
 double BehaviourCloning::loss(const at::Tensor& states, const at::Tensor& actions) {

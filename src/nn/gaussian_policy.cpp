@@ -66,6 +66,14 @@ std::pair<torch::Tensor, torch::Tensor> GaussianPolicyImpl::forward(const torch:
   return {mean, log_std};
 }
 
+GaussianPolicyImpl::FitOutputs GaussianPolicyImpl::forward_for_fit(const torch::Tensor& state) {
+  const torch::Tensor x = normalize(state);
+  const torch::Tensor raw = run_mlp(log_std_layers, x, Activation::kRelu);
+  const torch::Tensor log_std = raw.clamp(options_.log_std_min, options_.log_std_max);
+  // raw - clamp(raw) is the signed overshoot; its magnitude is what lies outside the bounds.
+  return {run_mlp(mean_layers, x, options_.mean_activation), log_std, (raw - log_std).abs()};
+}
+
 torch::Tensor GaussianPolicyImpl::mean_action(const torch::Tensor& state) {
   return torch::tanh(run_mlp(mean_layers, normalize(state), options_.mean_activation));
 }

@@ -71,6 +71,37 @@ TEST(BehaviourCloning, ActionsAtTheBoundAreCensoredObservations) {
   EXPECT_GT(density.loss(states, actions), censored.loss(states, actions) + 10);
 }
 
+TEST(BehaviourCloning, ALogStdHeadPastItsBoundIsPulledBack) {
+  // The log-std head outputs 3.5, past the bound 2: the clamp alone has no gradient there, so without the
+  // overshoot penalty the head would stay put (the state is 0, so only the bias moves it). The loss is the
+  // NLL at log std 2 plus the overshoot 1.5, and a step lowers the head's bias; inside the bounds (the other
+  // tests) the penalty is exactly zero.
+  for (bool censor : {true, false}) {
+    GaussianPolicy policy = constant_policy();
+    auto& bias = policy->log_std_layers[1]->as<torch::nn::Linear>()->bias;
+    {
+      torch::NoGradGuard g;
+      bias.fill_(3.5);
+    }
+    BehaviourCloningOptions options;
+    options.censor_saturated = censor;
+    BehaviourCloning bc(policy, options);
+    const auto states = torch::zeros({2, 1});
+    const auto actions = torch::tensor({{0.5f}, {-0.3f}});
+    double expected = 1.5;
+    for (double a : {0.5, -0.3}) {
+      const double u = std::atanh(a), sigma = std::exp(2.0);
+      const double log_n = -0.5 * std::pow((u - 0.2) / sigma, 2) - std::log(sigma) - 0.5 * std::log(2 * M_PI);
+      expected += -(log_n - std::log(1 - a * a + 1e-6)) / 2;
+    }
+    EXPECT_NEAR(bc.loss(states, actions), expected, 1e-5) << "censor " << censor;
+    // Adam moves the bias by about lr = 0.01 a step: 300 steps cover the 1.5 of overshoot.
+    for (int i = 0; i < 300; ++i)
+      bc.update(states, actions);
+    EXPECT_LT(bias.item<double>(), 2.0) << "censor " << censor;  // back inside, where the NLL pulls it
+  }
+}
+
 TEST(BehaviourCloning, LearnsAClippedExpert) {
   // An expert whose first action is clipped at the bound on two thirds of the states: the censored fit
   // acts at the bound where the expert did and learns the unclipped second action.

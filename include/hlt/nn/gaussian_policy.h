@@ -50,6 +50,14 @@ class GaussianPolicyImpl : public torch::nn::Module {
 
   // The Gaussian's mean and clamped log-std before the tanh, each [B, m].
   std::pair<torch::Tensor, torch::Tensor> forward(const torch::Tensor& state);
+  // forward's values for fits by likelihood (behaviour cloning), and how far the log-std head's output lies
+  // outside [log_std_min, log_std_max] (0 inside), [B, m]. Why: the clamp has no gradient, so a step that
+  // takes the head past a bound for every state would leave it there for good; a fit penalises the
+  // overshoot to bring it back (stuck at the upper bound on 3 of 5 Ant seeds before; docs/RESULTS.md).
+  struct FitOutputs {
+    torch::Tensor mean, log_std, overshoot;
+  };
+  FitOutputs forward_for_fit(const torch::Tensor& state);
   // tanh(mu(s)): the deterministic action.
   torch::Tensor mean_action(const torch::Tensor& state);
   // The mean head and its tanh as one autograd node: dense_chain(mean_chain(), {state}) equals
