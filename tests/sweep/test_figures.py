@@ -119,6 +119,13 @@ def build_tree(root):
         "imitation/policy_return": [(1000, 100.0), (2000, 400.0), (3000, 900.0)],
         "imitation/eval_success_rate": [(1000, 0.0), (2000, 0.5), (3000, 1.0)],
     })
+    # an imitation run that also scored each count over several test episodes: those means are its curve
+    make_run(root, "ant", "bc", 0, {
+        "imitation/demonstrations": [(1000, 1), (2000, 2), (3000, 3)],
+        "imitation/test_return": [(1000, 10.0), (2000, 20.0), (3000, 30.0)],
+        "imitation/eval_return_mean": [(1000, 250.0), (2000, 650.0), (3000, 1050.0)],
+        "imitation/policy_return": [(1000, 10.0), (2000, 20.0), (3000, 30.0)],
+    })
     # a robot task learnt online: seed 0 succeeds from its 3rd episode on, seed 1 never (episodes of 100
     # steps at steps 100, 200, ...; 12 episodes)
     for seed, first in ((0, 3), (1, None)):
@@ -247,6 +254,7 @@ class Figures(unittest.TestCase):
         self.assertIn("| expert | 1 | 2300 +- 0 | 2300 +- 0 | 2300 +- 0 |", fig5)
         self.assertIn("| hybrid-stochastic | 1 | 300 +- 0 | 1200 +- 0 | 2100 +- 0 |", fig5)
         self.assertIn("| hybrid-stochastic, policy alone | 1 | 100 +- 0 | 400 +- 0 | 900 +- 0 |", fig5)
+        self.assertIn("| bc | 1 | 250 +- 0 | 650 +- 0 | 1050 +- 0 |", fig5)  # the means, not the one episode
 
     def test_robot_tasks_get_success_per_episode_and_per_count(self):
         robot = section(self.markdown, "robot")
