@@ -18,9 +18,10 @@ groups them by environment and method as their config.yaml says, and writes to -
   fig5_imitation.png         paper Fig. 5: test return against the number of expert demonstrations, for runs
                              that log imitation/demonstrations (the count so far): each imitation method's
                              imitation/test_return (imitation/eval_return_mean, the mean over
-                             imitation.eval_episodes test episodes, where a run logged it), a hybrid's policy alone (imitation/policy_return, where
-                             it differs from the test return) and the expert from the same start states
-                             (imitation/expert_return, pooled over all runs of the environment); the
+                             imitation.eval_episodes test episodes, where a run logged it), a hybrid's
+                             policy alone (imitation/policy_return, where it differs from the test
+                             return) and the expert from the same start states (imitation/expert_return,
+                             pooled over all runs of the environment); the
                              markdown adds a table of the values per count; where runs log
                              imitation/eval_success_rate (the robot tasks), a second row of success rates
   robot_<env>.png            the robot tasks' online learning: per training episode, the fraction of seeds
@@ -409,7 +410,8 @@ def imitation_rows(groups, reg):
         for group in mine:
             # The mean of imitation.eval_episodes test episodes where a run logged it: one episode per
             # count is too noisy to rank methods by (the Ant: per-count spread over seeds up to 200).
-            tests = [imitation_curve(r, IMITATION_EVAL) or imitation_curve(r, IMITATION_TEST) for r in group.runs]
+            tests = [imitation_curve(r, IMITATION_EVAL) or imitation_curve(r, IMITATION_TEST)
+                     for r in group.runs]
             policies = [imitation_curve(r, IMITATION_POLICY) for r in group.runs]
             rows.append((group.label, group.method, "-", [c for c in tests if c is not None]))
             # a hybrid's policy alone; for behaviour cloning the policy is the test, so nothing new to draw

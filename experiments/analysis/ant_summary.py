@@ -46,6 +46,7 @@ def read(path):
 
 runs = {m: {seed_of(p): read(p) for p in glob.glob(os.path.join(root, "ant", m, "seed*", "scalars.csv"))}
         for m in METHODS}
+variants = {m: sorted({k for run in runs[m].values() for k in run if k.startswith("variant")}) for m in METHODS}
 counts = sorted({c for m in METHODS for run in runs[m].values() for c in run["eval"]})
 if not counts:
     sys.exit(f"no imitation/eval_return_mean under {root}/ant")
@@ -59,8 +60,6 @@ def cell(s, fmt="{:.0f} +- {:.0f}"):
     return fmt.format(*s) if s else ""
 
 
-expert_by_count = {c: [run["expert"][c] for m in METHODS for run in runs[m].values() if c in run["expert"]]
-                   for c in counts}
 # The expert runs from each seed's test start state, which both methods share: one value per seed.
 expert_seed = {}
 for m in METHODS:
@@ -82,8 +81,7 @@ for m in METHODS:
             continue  # behaviour cloning's test episode is its policy
         row = [stats([run[name][c] for run in runs[m].values() if c in run[name]]) for c in counts]
         print(f"| {m}, {label} ({len(runs[m])} seeds) | " + " | ".join(cell(s) for s in row) + " |")
-    variants = sorted({k for run in runs[m].values() for k in run if k.startswith("variant")})
-    for v in variants:
+    for v in variants[m]:
         row = [stats([run[v][c] for run in runs[m].values() if c in run.get(v, {})]) for c in counts]
         print(f"| {m}, {v} (eval.variants, same networks) | " + " | ".join(cell(s) for s in row) + " |")
     frac = [[run["eval"][c] / expert_seed[(s, c)] for s, run in runs[m].items()
@@ -101,7 +99,7 @@ if all(runs[m] for m in METHODS):
         f"{m} {statistics.mean(v for run in runs[m].values() for v in run['eval'].values()):.1f}" for m in METHODS) +
           f", expert {statistics.mean(expert_seed.values()):.1f}" + "".join(
               f", hybrid-imitation {v} {statistics.mean(x for run in runs['hybrid-imitation'].values() for x in run[v].values()):.1f}"
-              for v in sorted({k for run in runs["hybrid-imitation"].values() for k in run if k.startswith("variant")})))
+              for v in variants["hybrid-imitation"]))
 for m in METHODS:
     print(f"\n{m}: every seed's mean test return (imitation/eval_return_mean) per count")
     print("| seed | " + " | ".join(str(c) for c in counts) + " | mean |")
