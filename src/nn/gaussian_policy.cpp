@@ -35,6 +35,13 @@ torch::Tensor run_mlp(torch::nn::ModuleList layers, torch::Tensor x, Activation 
   return x;
 }
 
+// The two heads on a state: the mean and the log-std head's output before its clamp.
+std::pair<torch::Tensor, torch::Tensor> heads(const GaussianPolicyImpl& policy, const torch::Tensor& state) {
+  const torch::Tensor x = policy.normalize(state);
+  return {run_mlp(policy.mean_layers, x, policy.options().mean_activation),
+          run_mlp(policy.log_std_layers, x, Activation::kRelu)};
+}
+
 }  // namespace
 
 GaussianPolicyImpl::GaussianPolicyImpl(const GaussianPolicyOptions& o) : options_(o) {
@@ -59,19 +66,15 @@ torch::Tensor GaussianPolicyImpl::normalize(const torch::Tensor& state) const {
 }
 
 std::pair<torch::Tensor, torch::Tensor> GaussianPolicyImpl::forward(const torch::Tensor& state) {
-  const torch::Tensor x = normalize(state);
-  torch::Tensor mean = run_mlp(mean_layers, x, options_.mean_activation);
-  torch::Tensor log_std =
-      run_mlp(log_std_layers, x, Activation::kRelu).clamp(options_.log_std_min, options_.log_std_max);
-  return {mean, log_std};
+  auto [mean, raw] = heads(*this, state);
+  return {mean, raw.clamp(options_.log_std_min, options_.log_std_max)};
 }
 
 GaussianPolicyImpl::FitOutputs GaussianPolicyImpl::forward_for_fit(const torch::Tensor& state) {
-  const torch::Tensor x = normalize(state);
-  const torch::Tensor raw = run_mlp(log_std_layers, x, Activation::kRelu);
+  auto [mean, raw] = heads(*this, state);
   const torch::Tensor log_std = raw.clamp(options_.log_std_min, options_.log_std_max);
   // raw - clamp(raw) is the signed overshoot; its magnitude is what lies outside the bounds.
-  return {run_mlp(mean_layers, x, options_.mean_activation), log_std, (raw - log_std).abs()};
+  return {mean, log_std, (raw - log_std).abs()};
 }
 
 torch::Tensor GaussianPolicyImpl::mean_action(const torch::Tensor& state) {
