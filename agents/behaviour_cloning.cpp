@@ -15,14 +15,10 @@ BehaviourCloning::BehaviourCloning(GaussianPolicy policy, const BehaviourCloning
 at::Tensor BehaviourCloning::nll(const at::Tensor& states, const at::Tensor& actions) {
   check(states.dim() == 2 && actions.dim() == 2 && states.size(0) == actions.size(0) && states.size(0) > 0,
         "behaviour cloning needs [B, n] states and [B, m] actions");
-  const GaussianPolicyImpl::FitOutputs fit = policy_->forward_for_fit(states);
-  const at::Tensor &mean = fit.mean, &log_std = fit.log_std;
-  // The overshoot itself, not its square: its gradient stays 1 up to the bound, so the head crosses back
-  // into range (where the likelihood takes over) instead of creeping towards the bound. Zero in range.
-  const at::Tensor penalty = fit.overshoot.sum(-1).mean();
+  const auto [mean, log_std] = policy_->forward_for_fit(states);
   const at::Tensor a = actions.clamp(-1.0 + kTanhEpsilon, 1.0 - kTanhEpsilon);
   const at::Tensor u = torch::atanh(a);
-  if (!censor_saturated_) return -GaussianPolicyImpl::squashed_log_prob(u, a, mean, log_std).mean() + penalty;
+  if (!censor_saturated_) return -GaussianPolicyImpl::squashed_log_prob(u, a, mean, log_std).mean();
   const at::Tensor saturated = actions.abs() >= kSaturatedAt;
   const at::Tensor z = (u - mean) * torch::exp(-log_std);
   const at::Tensor density =
@@ -31,7 +27,7 @@ at::Tensor BehaviourCloning::nll(const at::Tensor& states, const at::Tensor& act
   const at::Tensor sign = torch::sign(actions);
   const at::Tensor tail =
       torch::special::log_ndtr((sign * mean - std::atanh(kCensorLevel)) * torch::exp(-log_std));
-  return -torch::where(saturated, tail, density).sum(-1).mean() + penalty;
+  return -torch::where(saturated, tail, density).sum(-1).mean();
 }
 
 double BehaviourCloning::loss(const at::Tensor& states, const at::Tensor& actions) {

@@ -42,7 +42,30 @@ std::pair<torch::Tensor, torch::Tensor> heads(const GaussianPolicyImpl& policy, 
           run_mlp(policy.log_std_layers, x, Activation::kRelu)};
 }
 
+struct InwardClamp : torch::autograd::Function<InwardClamp> {
+  static torch::Tensor forward(torch::autograd::AutogradContext* ctx, const torch::Tensor& raw, double lo,
+                               double hi) {
+    ctx->save_for_backward({raw});
+    ctx->saved_data["lo"] = lo;
+    ctx->saved_data["hi"] = hi;
+    return raw.clamp(lo, hi);
+  }
+  static torch::autograd::tensor_list backward(torch::autograd::AutogradContext* ctx,
+                                               torch::autograd::tensor_list grad) {
+    const torch::Tensor raw = ctx->get_saved_variables()[0];
+    const double lo = ctx->saved_data["lo"].toDouble(), hi = ctx->saved_data["hi"].toDouble();
+    const torch::Tensor& g = grad[0];
+    const torch::Tensor pass = ((raw >= lo) & (raw <= hi)) | ((raw > hi) & (g > 0)) | ((raw < lo) & (g < 0));
+    return {g * pass, torch::Tensor(), torch::Tensor()};
+  }
+};
+
 }  // namespace
+
+torch::Tensor clamp_with_inward_gradient(const torch::Tensor& raw, double lo, double hi) {
+  check(lo <= hi, "clamp_with_inward_gradient needs lo <= hi, got [{}, {}]", lo, hi);
+  return InwardClamp::apply(raw, lo, hi);
+}
 
 GaussianPolicyImpl::GaussianPolicyImpl(const GaussianPolicyOptions& o) : options_(o) {
   check(o.state_dim > 0 && o.action_dim > 0, "GaussianPolicy needs positive sizes, got n={} m={}",
@@ -70,11 +93,9 @@ std::pair<torch::Tensor, torch::Tensor> GaussianPolicyImpl::forward(const torch:
   return {mean, raw.clamp(options_.log_std_min, options_.log_std_max)};
 }
 
-GaussianPolicyImpl::FitOutputs GaussianPolicyImpl::forward_for_fit(const torch::Tensor& state) {
+std::pair<torch::Tensor, torch::Tensor> GaussianPolicyImpl::forward_for_fit(const torch::Tensor& state) {
   auto [mean, raw] = heads(*this, state);
-  const torch::Tensor log_std = raw.clamp(options_.log_std_min, options_.log_std_max);
-  // raw - clamp(raw) is the signed overshoot; its magnitude is what lies outside the bounds.
-  return {mean, log_std, (raw - log_std).abs()};
+  return {mean, clamp_with_inward_gradient(raw, options_.log_std_min, options_.log_std_max)};
 }
 
 torch::Tensor GaussianPolicyImpl::mean_action(const torch::Tensor& state) {

@@ -72,10 +72,9 @@ TEST(BehaviourCloning, ActionsAtTheBoundAreCensoredObservations) {
 }
 
 TEST(BehaviourCloning, ALogStdHeadPastItsBoundIsPulledBack) {
-  // The log-std head outputs 3.5, past the bound 2: the clamp alone has no gradient there, so without the
-  // overshoot penalty the head would stay put (the state is 0, so only the bias moves it). The loss is the
-  // NLL at log std 2 plus the overshoot 1.5, and a step lowers the head's bias; inside the bounds (the other
-  // tests) the penalty is exactly zero.
+  // The log-std head outputs 3.5, past the bound 2: a plain clamp has no gradient there, so the head would
+  // stay put (the state is 0, so only the bias moves it). The loss is the NLL at log std 2; its gradient
+  // with respect to the log-std, 1 - z^2 > 0 for these actions, points back into range and gets through.
   for (bool censor : {true, false}) {
     GaussianPolicy policy = constant_policy();
     auto& bias = policy->log_std_layers[1]->as<torch::nn::Linear>()->bias;
@@ -88,18 +87,40 @@ TEST(BehaviourCloning, ALogStdHeadPastItsBoundIsPulledBack) {
     BehaviourCloning bc(policy, options);
     const auto states = torch::zeros({2, 1});
     const auto actions = torch::tensor({{0.5f}, {-0.3f}});
-    double expected = 1.5;
+    double expected = 0;
     for (double a : {0.5, -0.3}) {
       const double u = std::atanh(a), sigma = std::exp(2.0);
       const double log_n = -0.5 * std::pow((u - 0.2) / sigma, 2) - std::log(sigma) - 0.5 * std::log(2 * M_PI);
       expected += -(log_n - std::log(1 - a * a + 1e-6)) / 2;
     }
     EXPECT_NEAR(bc.loss(states, actions), expected, 1e-5) << "censor " << censor;
-    // Adam moves the bias by about lr = 0.01 a step: 300 steps cover the 1.5 of overshoot.
+    // Adam moves the bias by about lr = 0.01 a step: 300 steps cover the 1.5 past the bound.
     for (int i = 0; i < 300; ++i)
       bc.update(states, actions);
     EXPECT_LT(bias.item<double>(), 2.0) << "censor " << censor;  // back inside, where the NLL pulls it
   }
+}
+
+TEST(BehaviourCloning, ALogStdHeadPastItsBoundIsNotPushedInAgainstTheLoss) {
+  // Only actions at +1, censored, with the mean below the censoring level: the likelihood P(u >= c) grows
+  // with the spread, so the loss wants the head further out. Past the bound that gradient is withheld (a
+  // penalty would drag the head in against the data); the mean still learns.
+  GaussianPolicy policy = constant_policy();
+  auto& log_std_bias = policy->log_std_layers[1]->as<torch::nn::Linear>()->bias;
+  auto& mean_bias = policy->mean_layers[1]->as<torch::nn::Linear>()->bias;
+  {
+    torch::NoGradGuard g;
+    log_std_bias.fill_(2.5);
+  }
+  BehaviourCloning bc(policy, BehaviourCloningOptions{});
+  const auto states = torch::zeros({2, 1});
+  const auto actions = torch::ones({2, 1});
+  const double mu = 0.2, sigma = std::exp(2.0), c = std::atanh(kCensorLevel);
+  EXPECT_NEAR(bc.loss(states, actions), -log_normal_cdf((mu - c) / sigma), 1e-5);
+  for (int i = 0; i < 20; ++i)
+    bc.update(states, actions);
+  EXPECT_DOUBLE_EQ(log_std_bias.item<double>(), 2.5);
+  EXPECT_GT(mean_bias.item<double>(), 0.3);  // the mean moves towards the saturated actions
 }
 
 TEST(BehaviourCloning, LearnsAClippedExpert) {

@@ -154,6 +154,18 @@ TEST(GaussianPolicy, LogStdIsClamped) {
 
 // Input normalisation is the same network applied to (s - offset) / scale, however the policy is evaluated:
 // its own forward, the mean chain the deterministic planner differentiates, and the planners' batched pass.
+TEST(GaussianPolicy, ClampWithInwardGradientPassesOnlyGradientsThatPointBackIntoRange) {
+  // raw above hi, below lo and inside; upstream gradients of both signs. A descent step moves raw by -g:
+  // above hi only g > 0 moves it back, below lo only g < 0.
+  const auto raw = torch::tensor({3.0, 3.0, -7.0, -7.0, 0.5, 0.5, 2.0}, torch::requires_grad());
+  const auto g = torch::tensor({1.0, -1.0, 1.0, -1.0, 1.0, -1.0, -2.0});
+  const auto y = clamp_with_inward_gradient(raw, -5.0, 2.0);
+  EXPECT_TRUE(torch::equal(y.detach(), raw.detach().clamp(-5.0, 2.0)));
+  y.backward(g);
+  EXPECT_TRUE(torch::equal(raw.grad(), torch::tensor({1.0, 0.0, 0.0, -1.0, 1.0, -1.0, -2.0})));
+  EXPECT_THROW(clamp_with_inward_gradient(raw, 1.0, 0.0), Error);
+}
+
 TEST(GaussianPolicy, InputNormalisationIsTheNetworkOnScaledStates) {
   torch::manual_seed(3);
   const int64_t n = 4, m = 2;

@@ -20,6 +20,12 @@ namespace hlt {
 // The constant in the tanh correction log(1 - a^2 + kTanhEpsilon), which keeps it finite at |a| = 1.
 inline constexpr double kTanhEpsilon = 1e-6;
 
+// clamp(raw, lo, hi) whose gradient passes where the clamp is active only if a descent step would move raw
+// back towards [lo, hi] (above hi: a positive gradient; below lo: a negative one); inside, the plain clamp's.
+// A head past a bound returns when its loss wants it back, and stays where the loss wants it further out
+// (a censored action's likelihood grows with the spread) without being pushed in.
+torch::Tensor clamp_with_inward_gradient(const torch::Tensor& raw, double lo, double hi);
+
 struct GaussianPolicyOptions {
   int64_t state_dim = 0;
   int64_t action_dim = 0;
@@ -50,14 +56,11 @@ class GaussianPolicyImpl : public torch::nn::Module {
 
   // The Gaussian's mean and clamped log-std before the tanh, each [B, m].
   std::pair<torch::Tensor, torch::Tensor> forward(const torch::Tensor& state);
-  // forward's values for fits by likelihood (behaviour cloning), and how far the log-std head's output lies
-  // outside [log_std_min, log_std_max] (0 inside), [B, m]. Why: the clamp has no gradient, so a step that
-  // takes the head past a bound for every state would leave it there for good; a fit penalises the
-  // overshoot to bring it back (stuck at the upper bound on 3 of 5 Ant seeds before; docs/RESULTS.md).
-  struct FitOutputs {
-    torch::Tensor mean, log_std, overshoot;
-  };
-  FitOutputs forward_for_fit(const torch::Tensor& state);
+  // forward's values for fits by likelihood (behaviour cloning); the log-std is clamped by
+  // clamp_with_inward_gradient. Why: the plain clamp has no gradient outside its bounds, so one step that
+  // takes the head past a bound for every state would leave it there for good (stuck at the upper bound on
+  // 3 of 5 Ant seeds; docs/RESULTS.md).
+  std::pair<torch::Tensor, torch::Tensor> forward_for_fit(const torch::Tensor& state);
   // tanh(mu(s)): the deterministic action.
   torch::Tensor mean_action(const torch::Tensor& state);
   // The mean head and its tanh as one autograd node: dense_chain(mean_chain(), {state}) equals
