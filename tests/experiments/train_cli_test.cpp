@@ -271,6 +271,39 @@ TEST(RolloutCli, ModelsPredictEveryStepOfTheRollout) {
   EXPECT_NE(r.output.find("holds no dynamics and reward models"), std::string::npos) << r.output;
 }
 
+TEST(ModelFitCli, FitsAModelThatBeatsNoChangeAndRefusesMismatchedRecordings) {
+  const std::string dir = fresh_dir("model_fit");
+  const std::string rollout = std::string(HLT_ROLLOUT_BIN) + " --env pendulum --policy random --frame-skip 4";
+  ASSERT_EQ(run(rollout + " --episodes 8 --seed 1 --demos " + dir + "/train.hltd").code, 0);
+  ASSERT_EQ(run(rollout + " --episodes 2 --seed 100 --demos " + dir + "/test.hltd").code, 0);
+  const std::string fit = std::string(HLT_MODEL_FIT_BIN) + " --env pendulum --train " + dir +
+                          "/train.hltd --test " + dir + "/test.hltd --updates 1500 --report-every 500";
+  Result r = run(fit);
+  ASSERT_EQ(r.code, 0) << r.output;
+  // The last report: "1500 | loss | train ratio (better in k of 3) | test ratio (better in k of 3)". The
+  // pendulum's step is smooth: a fitted model predicts unseen episodes far better than "no change".
+  const size_t at = r.output.find("\n1500 | ");
+  ASSERT_NE(at, std::string::npos) << r.output;
+  const std::string row = r.output.substr(at + 1, r.output.find('\n', at + 1) - at - 1);
+  const double test_ratio = std::stod(row.substr(row.rfind("| ") + 2));
+  EXPECT_LT(test_ratio, 0.3) << row;
+  EXPECT_NE(r.output.find("to 400 transitions, scoring on 100"), std::string::npos) << r.output;
+  // The same seed gives the same fit.
+  EXPECT_EQ(run(fit).output, r.output);
+  // Refused with a clear message: recordings of another environment, a missing file, a bad override.
+  r = run(std::string(HLT_MODEL_FIT_BIN) + " --env acrobot --train " + dir + "/train.hltd --test " + dir +
+          "/test.hltd");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.output.find("pendulum"), std::string::npos) << r.output;
+  r = run(std::string(HLT_MODEL_FIT_BIN) + " --env pendulum --train " + dir + "/none.hltd --test " + dir +
+          "/test.hltd");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.output.find("none.hltd"), std::string::npos) << r.output;
+  r = run(fit + " model.hidden=0");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.output.find("model.hidden"), std::string::npos) << r.output;
+}
+
 TEST(TrainCli, ResumeNeverDestroysData) {
   const std::string dir = fresh_dir("resume_guards");
   // 100 agent steps are two whole pendulum episodes: the run ends at an episode end, checkpointed.

@@ -572,6 +572,53 @@ def _(cat):
         subprocess.run(["umount", mnt])
 
 
+# --- hlt_model_fit ---------------------------------------------------------------------------------------------------
+F = "hlt_model_fit"
+
+
+def pendulum_demos(cat, name="d.hltd"):
+    """Two random-policy pendulum episodes recorded as demonstrations (once per catalogue run)."""
+    path = tmp(cat, name)
+    if not os.path.exists(path):
+        cat.run("hlt_rollout", ["--env", "pendulum", "--episodes", 2, "--frame-skip", 4, "--demos", path])
+    return path
+
+
+def fit_args(extra, train=None):
+    return lambda c: ["--env", "pendulum", "--train", train(c) if train else pendulum_demos(c), "--test",
+                      pendulum_demos(c), "--updates", 5] + extra
+
+
+register_simple(F, "flags", "model_fit.unknown_flag", fit_args(["--bogus"]), ["--bogus"])
+register_simple(F, "flags", "model_fit.no_test", lambda c: ["--env", "pendulum", "--train", pendulum_demos(c)],
+                ["--test"])
+register_simple(F, "unknown names", "model_fit.unknown_env",
+                lambda c: ["--env", "moonwalk", "--train", pendulum_demos(c), "--test", pendulum_demos(c)],
+                ["moonwalk"])
+register_simple(F, "values", "model_fit.updates_zero", fit_args(["--updates", 0]), ["--updates"])
+register_simple(F, "values", "model_fit.bad_override", fit_args(["model.hidden=0"]), ["model.hidden"])
+register_simple(F, "values", "model_fit.override_nan", fit_args(["model.lr=nan"]), ["model.lr"])
+register_simple(F, "files", "model_fit.train_missing", fit_args([], lambda c: tmp(c, "none.hltd")), ["none.hltd"])
+register_simple(F, "files", "model_fit.other_env",
+                lambda c: ["--env", "acrobot", "--train", pendulum_demos(c), "--test", pendulum_demos(c)],
+                ["pendulum"])
+
+
+def broken_demos(name, damage):
+    def path(c):
+        p = tmp(c, name)
+        shutil.copyfile(pendulum_demos(c), p)
+        damage(p)
+        return p
+    return path
+
+
+register_simple(F, "4 corrupt files", "model_fit.train_truncated",
+                fit_args([], broken_demos("t.hltd", lambda p: truncate(p, .5))), ["t.hltd"])
+register_simple(F, "4 corrupt files", "model_fit.train_garbage",
+                fit_args([], broken_demos("g.hltd", lambda p: write(p, os.urandom(3000), "wb"))), ["g.hltd"])
+
+
 # --- hlt_bench -------------------------------------------------------------------------------------------------------
 B = "hlt_bench"
 register_simple(B, "flags", "bench.unknown_flag", ["--bogus"], ["--bogus"])
