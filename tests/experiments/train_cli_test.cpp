@@ -290,18 +290,18 @@ TEST(ModelFitCli, FitsAModelThatBeatsNoChangeAndRefusesMismatchedRecordings) {
   EXPECT_NE(r.output.find("to 400 transitions, scoring on 100"), std::string::npos) << r.output;
   // The same seed gives the same fit.
   EXPECT_EQ(run(fit).output, r.output);
-  // Refused with a clear message: recordings of another environment, a missing file, a bad override.
-  r = run(std::string(HLT_MODEL_FIT_BIN) + " --env acrobot --train " + dir + "/train.hltd --test " + dir +
-          "/test.hltd");
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.output.find("pendulum"), std::string::npos) << r.output;
-  r = run(std::string(HLT_MODEL_FIT_BIN) + " --env pendulum --train " + dir + "/none.hltd --test " + dir +
-          "/test.hltd");
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.output.find("none.hltd"), std::string::npos) << r.output;
-  r = run(fit + " model.hidden=0");
-  EXPECT_NE(r.code, 0);
-  EXPECT_NE(r.output.find("model.hidden"), std::string::npos) << r.output;
+  // Refused (exit 2) with a message naming what is wrong: recordings of another environment, a missing file,
+  // a bad override.
+  const std::string tool = std::string(HLT_MODEL_FIT_BIN);
+  const std::vector<std::pair<std::string, std::string>> refused = {
+      {" --env acrobot --train " + dir + "/train.hltd --test " + dir + "/test.hltd", "pendulum"},
+      {" --env pendulum --train " + dir + "/none.hltd --test " + dir + "/test.hltd", "none.hltd"},
+      {fit.substr(tool.size()) + " model.hidden=0", "model.hidden"}};
+  for (const auto& [args, word] : refused) {
+    r = run(tool + args);
+    EXPECT_EQ(r.code, 2) << args;
+    EXPECT_NE(r.output.find(word), std::string::npos) << r.output;
+  }
 }
 
 TEST(TrainCli, ResumeNeverDestroysData) {
