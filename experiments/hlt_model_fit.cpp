@@ -37,29 +37,32 @@ struct Recordings {
   int64_t transitions = 0;
 };
 
-Recordings load_all(const std::vector<std::string>& paths, const std::string& env, int n, int m) {
+// Every file must be of `env` with these sizes and at `frame_skip` (0: the first file's).
+Recordings load_all(const std::vector<std::string>& paths, const std::string& env, int n, int m,
+                    int frame_skip = 0) {
   Recordings r;
   for (const std::string& path : paths) {
     Demonstrations d = Demonstrations::load(path);
-    const int k = r.files.empty() ? d.frame_skip() : r.files.front().frame_skip();
-    d.check_matches(env, n, m, k);  // every file of one environment, sizes and frame skip
+    if (frame_skip == 0) frame_skip = d.frame_skip();
+    d.check_matches(env, n, m, frame_skip);
     r.transitions += d.transitions();
     r.files.push_back(std::move(d));
   }
   return r;
 }
 
-// Every transition; the next action (for the reward model's TD target) is the next step's, or the step's
-// own at an episode's end.
-void fill(const Recordings& r, ReplayBuffer& buffer, ModelCheck& check) {
+// Every transition into `check`, and into `buffer` if given; the next action (for the reward model's TD
+// target) is the next step's, or the step's own at an episode's end.
+void fill(const Recordings& r, ModelCheck& check, ReplayBuffer* buffer = nullptr) {
   for (const Demonstrations& d : r.files) {
     for (const std::vector<DemoStep>& episode : d.episodes()) {
       for (size_t t = 0; t < episode.size(); ++t) {
         const DemoStep& s = episode[t];
-        const Eigen::VectorXd& next_action = t + 1 < episode.size() ? episode[t + 1].action : s.action;
-        buffer.add(s.observation.data(), s.action.data(), s.reward, s.next_observation.data(),
-                   next_action.data(), s.terminated);
         check.add(s.observation, s.action, s.next_observation);
+        if (!buffer) continue;
+        const Eigen::VectorXd& next_action = t + 1 < episode.size() ? episode[t + 1].action : s.action;
+        buffer->add(s.observation.data(), s.action.data(), s.reward, s.next_observation.data(),
+                    next_action.data(), s.terminated);
       }
     }
   }
@@ -107,18 +110,15 @@ int run(int argc, char** argv) {
   const std::unique_ptr<Env> env = make_env(env_name);
   const int n = env->observation_dim(), m = env->action_dim();
   const Recordings train = load_all(train_files, env_name, n, m);
-  const Recordings test = load_all(test_files, env_name, n, m);
+  const int frame_skip = train.files.front().frame_skip();
+  const Recordings test = load_all(test_files, env_name, n, m, frame_skip);
   check(train.transitions > 0 && test.transitions > 0,
         "--train and --test need at least one transition each");
-  check(train.files.front().frame_skip() == test.files.front().frame_skip(),
-        "--train was recorded at frame skip {}, --test at {}", train.files.front().frame_skip(),
-        test.files.front().frame_skip());
 
   ReplayBuffer buffer(train.transitions, n, m, seed);
   ModelCheck train_check, test_check;
-  fill(train, buffer, train_check);
-  ReplayBuffer unused(test.transitions, n, m, seed);
-  fill(test, unused, test_check);
+  fill(train, train_check, &buffer);
+  fill(test, test_check);
 
   LearnedModels models;
   LearnerContext context{config, n, m, seed, models, env->observation_scale()};
@@ -129,21 +129,21 @@ int run(int argc, char** argv) {
       "{}) to {} transitions, scoring on {}; frame skip {}\n",
       env_name, config.get_int("model.hidden"), config.get_string("model.activation"),
       config.get_double("model.lr"), config.get_bool("model.normalize_inputs"), train.transitions,
-      test.transitions, train.files.front().frame_skip());
+      test.transitions, frame_skip);
   fmt::print("updates | dynamics loss | error / 'no change' on --train | on --test\n");
-  NamedLosses losses;
+  ModelScore on_test;
   for (int64_t u = 1; u <= updates; ++u) {
-    losses = learner->train(buffer.sample(batch_size));
+    const NamedLosses losses = learner->train(buffer.sample(batch_size));
     if (u % report_every == 0 || u == updates) {
       const ModelScore on_train = train_check.score(*models.dynamics, *env);
-      const ModelScore on_test = test_check.score(*models.dynamics, *env);
+      on_test = test_check.score(*models.dynamics, *env);
       fmt::print("{} | {:.4g} | {} | {}\n", u, losses.front().value, score_text(on_train),
                  score_text(on_test));
     }
   }
-  const ModelScore s = test_check.score(*models.dynamics, *env);
+  // The last report's scores (u == updates always reports).
   fmt::print("on --test, per component:\n  rms error  {:.4g}\n  rms change {:.4g}\n",
-             fmt::join(s.error_rms, " "), fmt::join(s.change_rms, " "));
+             fmt::join(on_test.error_rms, " "), fmt::join(on_test.change_rms, " "));
   return 0;
 }
 
