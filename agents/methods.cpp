@@ -62,6 +62,18 @@ DeterministicHybridOptions deterministic_options(const Config& c, bool evaluatio
   return o;
 }
 
+// What a stochastic planner rolls out on: models.plan_on if set, else the learned models.
+std::shared_ptr<RolloutModel> rollout_model(const LearnedModels& m, const StochasticHybridOptions& o,
+                                            const std::string& controller) {
+  if (m.plan_on) {
+    check(m.policy.is_empty() || m.plan_on->dtype() == m.policy->parameters().front().scalar_type(),
+          "{}: the model it plans on and the policy differ in dtype", controller);
+    return m.plan_on;
+  }
+  require(!m.dynamics.is_empty() && !m.reward.is_empty(), controller, "dynamics and reward model");
+  return std::make_shared<LearnedRolloutModel>(m.dynamics, m.reward, o.clamp_to_domain);
+}
+
 std::unique_ptr<Controller> make_policy_controller(const LearnedModels& m, const Config&, bool evaluation) {
   require(!m.policy.is_empty(), "policy", "policy");
   return std::make_unique<PolicyController>(m.policy, evaluation);
@@ -69,7 +81,6 @@ std::unique_ptr<Controller> make_policy_controller(const LearnedModels& m, const
 
 std::unique_ptr<Controller> make_stochastic_hybrid(const LearnedModels& m, const Config& c, bool) {
   require(!m.policy.is_empty(), "stochastic_hybrid", "policy");
-  require(!m.dynamics.is_empty() && !m.reward.is_empty(), "stochastic_hybrid", "dynamics and reward model");
   std::shared_ptr<ActionSampler> sampler = std::make_shared<PolicySampler>(
       m.policy, c.get_bool("planner.density_tanh_correction"), c.get_bool("planner.mean_rollout"));
   StochasticHybridOptions o = stochastic_options(c);
@@ -93,18 +104,17 @@ std::unique_ptr<Controller> make_stochastic_hybrid(const LearnedModels& m, const
       return critics->min_q(x, policy->mean_action(x));
     };
   }
-  return std::make_unique<StochasticHybrid>(sampler, m.dynamics, m.reward, o, m.policy, "stochastic_hybrid",
-                                            std::move(value));
+  return std::make_unique<StochasticHybrid>(sampler, rollout_model(m, o, "stochastic_hybrid"), o, m.policy,
+                                            "stochastic_hybrid", std::move(value));
 }
 
 std::unique_ptr<Controller> make_mppi(const LearnedModels& m, const Config& c, bool) {
-  require(!m.dynamics.is_empty() && !m.reward.is_empty(), "mppi", "dynamics and reward model");
   auto sampler =
       std::make_shared<FilteredNoiseSampler>(c.get_double("mppi.sigma"), c.get_double("mppi.filter"));
   // The baseline has no critic: it plans with the models alone.
   StochasticHybridOptions o = stochastic_options(c);
   o.terminal_value_weight = 0;
-  return std::make_unique<StochasticHybrid>(sampler, m.dynamics, m.reward, o, nullptr, "mppi");
+  return std::make_unique<StochasticHybrid>(sampler, rollout_model(m, o, "mppi"), o, nullptr, "mppi");
 }
 
 std::unique_ptr<Controller> make_deterministic_hybrid(const LearnedModels& m, const Config& c,

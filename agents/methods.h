@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "hlt/control/controller.h"
+#include "hlt/control/rollout_model.h"
 #include "hlt/nn/dynamics_model.h"
 #include "hlt/nn/gaussian_policy.h"
 #include "hlt/nn/reward_model.h"
@@ -52,6 +53,9 @@ struct LearnedModels {
   DynamicsModel dynamics{nullptr};
   RewardModel reward{nullptr};
   TwinQNetwork critics{nullptr};  // SAC's critics (not their target): the planner's terminal value
+  // If set, the stochastic planners (hybrid-stochastic, NN-MPPI) roll out on this instead of the learned
+  // dynamics and reward models (the tools' SimulatorRolloutModel: the planner with a perfect model).
+  std::shared_ptr<RolloutModel> plan_on;
 };
 
 // Builds the controller registered as `name` from the config's planner settings. `evaluation` switches off

@@ -44,21 +44,9 @@ OracleOptions OraclePolicy::parse(const std::string& spec) {
   return o;
 }
 
-namespace {
-
-// A fresh copy of `env` by name, frame-skipped as `env` is, so that its snapshots fit.
-std::unique_ptr<Env> copy_of(const Env& env) {
-  std::unique_ptr<Env> copy = make_env(env.name());
-  if (const auto* skip = dynamic_cast<const FrameSkip*>(&env))
-    copy = std::make_unique<FrameSkip>(std::move(copy), skip->frame_skip());
-  return copy;
-}
-
-}  // namespace
-
 OraclePolicy::OraclePolicy(const Env& env, const OracleOptions& options, uint64_t seed)
     : env_(env),
-      sim_(copy_of(env)),
+      sim_(make_env_like(env)),
       options_(options),
       rng_(seed),
       plan_(Eigen::MatrixXd::Zero(options.horizon, env.action_dim())) {}

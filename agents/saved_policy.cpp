@@ -4,6 +4,7 @@
 
 #include "agents/controller_policy.h"
 #include "agents/learner.h"
+#include "agents/methods.h"
 #include "agents/train_config.h"
 #include "envs/registry.h"
 #include "hlt/core/checkpoint.h"
@@ -96,6 +97,52 @@ SavedModels load_saved_models(const std::string& path) {
   models.reward->eval();
   out.dynamics = models.dynamics;
   out.reward = models.reward;
+  return out;
+}
+
+}  // namespace hlt
+
+namespace hlt {
+
+SavedController load_saved_controller(const std::string& path, const std::string& controller,
+                                      std::shared_ptr<RolloutModel> plan_on) {
+  CheckpointReader r(path);
+  SavedController out;
+  read_run(r, out);
+  Config config = make_train_config();
+  config.merge_yaml(r.get_string("config"), path);
+  const std::unique_ptr<Env> env = make_env(out.env);
+  LearnedModels models;
+  // The run's learners in its method's order build its networks (their initial weights are overwritten).
+  LearnerContext context{config, env->observation_dim(),  env->action_dim(), 0,
+                         models, env->observation_scale()};
+  std::vector<std::unique_ptr<Learner>> learners;
+  for (const LearnerUse& use : find_method(out.method).learners)
+    learners.push_back(make_learner(use.learner, context));
+  // As the trainer resumes: the shared networks, then each learner's own state (SAC's critics, the
+  // dynamics model's domain) where the file has it.
+  auto load = [&](const char* name, auto& module) {
+    if (module.is_empty()) return;
+    check(r.has(name), "checkpoint {} holds no '{}' network", path, name);
+    r.load_module(name, *module);
+  };
+  load("policy", models.policy);
+  load("dynamics", models.dynamics);
+  load("reward", models.reward);
+  // A run's checkpoint.pt (not its final.pt, which holds the networks alone) has them.
+  if (r.has("torch_rng")) {
+    for (auto& learner : learners)
+      learner->load_training_state(r);
+  }
+  auto evaluation_mode = [](auto& module) {
+    if (!module.is_empty()) module->eval();
+  };
+  evaluation_mode(models.policy);
+  evaluation_mode(models.dynamics);
+  evaluation_mode(models.reward);
+  evaluation_mode(models.critics);
+  models.plan_on = std::move(plan_on);
+  out.controller = make_controller(controller, models, config, /*evaluation=*/true);
   return out;
 }
 

@@ -8,6 +8,8 @@
 #include <string>
 
 #include "envs/rollout.h"
+#include "hlt/control/controller.h"
+#include "hlt/control/rollout_model.h"
 #include "hlt/nn/dynamics_model.h"
 #include "hlt/nn/gaussian_policy.h"
 #include "hlt/nn/reward_model.h"
@@ -37,5 +39,22 @@ struct SavedModels {
 // with the environment's declared observation ranges where model.normalize_inputs asks for them). Throws
 // hlt::Error if the checkpoint holds no models (e.g. SAC or behaviour cloning).
 SavedModels load_saved_models(const std::string& checkpoint_path);
+
+struct SavedController {
+  std::unique_ptr<Controller> controller;
+  std::string env;
+  std::string method;
+  int frame_skip = 1;
+};
+
+// The controller registered as `controller` (agents/controller_list.inc, e.g. "stochastic_hybrid"), built
+// for evaluation as the checkpoint's run builds it: its config's planner settings and its trained networks
+// (the run's learners are rebuilt from its method and config, then loaded). With `plan_on` the stochastic
+// planners roll out on it instead of the learned models. A run's checkpoint.pt gives the planner exactly as
+// it trained; its final.pt holds the networks alone, without the dynamics model's domain
+// (planner.clamp_to_data then clamps nothing) and SAC's critics (a planner.terminal_value then fails). Throws
+// hlt::Error if the checkpoint lacks a network the controller needs.
+SavedController load_saved_controller(const std::string& checkpoint_path, const std::string& controller,
+                                      std::shared_ptr<RolloutModel> plan_on = nullptr);
 
 }  // namespace hlt

@@ -32,6 +32,13 @@ std::unique_ptr<Env> make_env(const std::string& name) {
   return it->second();
 }
 
+std::unique_ptr<Env> make_env_like(const Env& env) {
+  std::unique_ptr<Env> copy = make_env(env.name());
+  if (const auto* skip = dynamic_cast<const FrameSkip*>(&env))
+    copy = std::make_unique<FrameSkip>(std::move(copy), skip->frame_skip());
+  return copy;
+}
+
 std::vector<std::string> env_names() {
   std::vector<std::string> names;
   for (const auto& kv : factories())

@@ -6,6 +6,7 @@
 //               --policy zero|random|constant:0.5|checkpoint:PATH|expert:PATH|scripted:NAME|oracle:H,K
 //               [--frame-skip K] [--csv traj.csv] [--video out.mp4] [--strip out.png] [--demos out.hltd]
 //               [--perception] [--models CHECKPOINT --predictions pred.csv]
+//               [--controller stochastic_hybrid [--plan-on learned|simulator]] (with checkpoint:PATH)
 #include <algorithm>
 #include <cmath>
 #include <iostream>
@@ -30,6 +31,7 @@
 #include "agents/model_check.h"
 #include "agents/policy_spec.h"
 #include "agents/saved_policy.h"
+#include "agents/simulator_model.h"
 #include "envs/env.h"
 #include "envs/registry.h"
 #include "envs/rollout.h"
@@ -182,6 +184,9 @@ struct Options {
   bool perception = false;  // report the camera-observed task's estimator error and step timings
   std::string models;       // a checkpoint whose dynamics and reward models predict every step
   std::string predictions;  // where their predictions go (CSV)
+  std::string controller;   // act with this controller of the checkpoint's run instead of its policy's mean
+  std::string plan_on =
+      "learned";  // the stochastic planners' model: the run's learned models or the simulator
 };
 
 // The learned models' one-step predictions next to what the environment did: per step the observation's
@@ -251,6 +256,27 @@ int run(Options o, bool frame_skip_given) {
   check(o.width >= 16 && o.height >= 16, "--width and --height must be at least 16");
   // The policy's randomness is its own stream, so changing the policy never changes the environment's starts.
   std::unique_ptr<PolicySource> policy = make_policy(o.policy, saved, *env, derive_seed(o.seed, 1));
+  check(o.plan_on == "learned" || o.plan_on == "simulator", "--plan-on: 'learned' or 'simulator', not '{}'",
+        o.plan_on);
+  check(o.controller.empty() || saved,
+        "--controller acts with a trained run's networks: give --policy "
+        "checkpoint:PATH");
+  check(o.plan_on == "learned" || o.controller == "stochastic_hybrid" || o.controller == "mppi",
+        "--plan-on simulator: only the stochastic planners (--controller stochastic_hybrid or mppi) plan "
+        "on the simulator");
+  std::unique_ptr<Controller> controller;
+  if (!o.controller.empty()) {
+    std::shared_ptr<RolloutModel> plan_on;
+    if (o.plan_on == "simulator") plan_on = std::make_shared<SimulatorRolloutModel>(*env, at::kFloat);
+    SavedController c =
+        load_saved_controller(o.policy.substr(std::string(kCheckpointPrefix).size()), o.controller, plan_on);
+    controller = std::move(c.controller);
+    // The planner's samples come from LibTorch's generator: its own stream, as the policy's.
+    torch::manual_seed(derive_seed(o.seed, 2));
+    policy = std::make_unique<ControllerPolicy>(*controller);
+    fmt::print("acting with the run's {} controller, planning on {}\n", o.controller,
+               o.plan_on == "simulator" ? "a copy of the simulator (a perfect model)" : "its learned models");
+  }
   // Output names are checked before any work is done.
   if (!o.video.empty()) {
     const std::string ext = extension(o.video);
@@ -294,6 +320,7 @@ int run(Options o, bool frame_skip_given) {
     const bool record = recording && ep < o.record_episodes;
     std::vector<DemoStep> demo_steps;
     auto on_reset = [&]() {
+      if (controller) controller->reset();  // each episode starts from an empty plan, as in training
       if (record) recorder.add(env->render(o.width, o.height));
       if (perception) perception->after_reset();
     };
@@ -403,6 +430,15 @@ int run_tool(int argc, char** argv) {
       "--predictions", o.predictions,
       "Write the models' one-step predictions (next observation, reward) of every step to this CSV, "
       "row for row with --csv");
+  app.add_option(
+      "--controller", o.controller,
+      "With --policy checkpoint:PATH: act with this controller of the run (e.g. stochastic_hybrid, "
+      "built from the run's config and networks) instead of the policy's mean");
+  app.add_option("--plan-on", o.plan_on,
+                 "With --controller stochastic_hybrid or mppi: plan on the run's 'learned' models or on a "
+                 "copy of the 'simulator' (a perfect model and the true reward: what the planner can do "
+                 "with better models)")
+      ->capture_default_str();
   if (const std::optional<int> code = hlt::parse_command_line(app, argc, argv)) return *code;
   hlt::check_finite_flags(app);
   if (list) {

@@ -6,33 +6,27 @@
 
 namespace hlt {
 
-void clamp_rows(at::Tensor& rows, const at::Tensor& low, const at::Tensor& high) {
-  check(rows.dim() == 2 && low.dim() == 1 && high.dim() == 1 && low.size(0) == rows.size(1) &&
-            high.size(0) == rows.size(1) && low.scalar_type() == rows.scalar_type() &&
-            high.scalar_type() == rows.scalar_type(),
-        "clamp_rows: bounds must be [{}] of the rows' dtype", rows.dim() == 2 ? rows.size(1) : -1);
-  dispatch_floating(rows, [&](auto tag) {
-    using T = decltype(tag);
-    const int64_t n = rows.size(1);
-    Eigen::Map<const Eigen::Array<T, 1, Eigen::Dynamic>> lo(low.data_ptr<T>(), n), hi(high.data_ptr<T>(), n);
-    auto r = row_map<T>(rows);
-    for (Eigen::Index i = 0; i < r.rows(); ++i)
-      r.row(i) = r.row(i).array().max(lo).min(hi).matrix();
-  });
-}
-
 StochasticHybrid::StochasticHybrid(std::shared_ptr<ActionSampler> sampler, DynamicsModel dynamics,
                                    RewardModel reward, const StochasticHybridOptions& options,
                                    GaussianPolicy fallback_policy, std::string name,
                                    TerminalValue terminal_value)
+    : StochasticHybrid(std::move(sampler),
+                       std::make_shared<LearnedRolloutModel>(std::move(dynamics), std::move(reward),
+                                                             options.clamp_to_domain),
+                       options, std::move(fallback_policy), std::move(name), std::move(terminal_value)) {}
+
+StochasticHybrid::StochasticHybrid(std::shared_ptr<ActionSampler> sampler,
+                                   std::shared_ptr<RolloutModel> model,
+                                   const StochasticHybridOptions& options, GaussianPolicy fallback_policy,
+                                   std::string name, TerminalValue terminal_value)
     : Controller(std::move(fallback_policy)),
       sampler_(std::move(sampler)),
-      dynamics_(dynamics),
-      models_(std::move(dynamics), std::move(reward)),
+      model_(std::move(model)),
       options_(options),
       name_(std::move(name)),
       terminal_value_(std::move(terminal_value)) {
   check(sampler_ != nullptr, "{}: needs an action sampler", name_);
+  check(model_ != nullptr, "{}: needs a model to plan on", name_);
   check(options.horizon >= 1 && options.samples >= 1, "{}: horizon and samples must be >= 1", name_);
   check(options.lambda > 0, "{}: lambda must be > 0, got {}", name_, options.lambda);
   check(options.min_ess >= 0 && options.min_ess <= static_cast<double>(options.samples),
@@ -45,13 +39,13 @@ StochasticHybrid::StochasticHybrid(std::shared_ptr<ActionSampler> sampler, Dynam
 }
 
 void StochasticHybrid::reset() {
-  const auto opts = dynamics_->fc1->weight.options().requires_grad(false);
+  const auto opts = torch::TensorOptions().dtype(model_->dtype());
   if (plan_.defined() && plan_.scalar_type() == opts.dtype()) {
     plan_.zero_();
     return;
   }
-  const int64_t H = options_.horizon, K = options_.samples, m = dynamics_->options().action_dim;
-  const int64_t n = dynamics_->options().state_dim;
+  const int64_t H = options_.horizon, K = options_.samples, m = model_->action_dim();
+  const int64_t n = model_->state_dim();
   // Buffers live as long as the controller; the per-step views into them are made once here.
   plan_ = torch::zeros({H, m}, opts);
   states_a_ = torch::empty({K, n}, opts);
@@ -72,11 +66,11 @@ void StochasticHybrid::reset() {
 at::Tensor StochasticHybrid::compute_action(const at::Tensor& state) {
   torch::InferenceMode guard;
   const int64_t H = options_.horizon, K = options_.samples, m = plan_.size(1);
-  const int64_t n = dynamics_->options().state_dim;
+  const int64_t n = model_->state_dim();
   check(state.numel() == n, "{}: state has {} values, the model expects {}", name_, state.numel(), n);
-  models_.prepare(K);
   const at::Tensor s0 =
       state.scalar_type() == plan_.scalar_type() ? state.contiguous() : state.to(plan_.scalar_type());
+  model_->begin(K, s0.reshape({n}));
 
   dispatch_floating(plan_, [&](auto tag) {
     using T = decltype(tag);
@@ -92,11 +86,9 @@ at::Tensor StochasticHybrid::compute_action(const at::Tensor& state) {
   sampler_->begin(K, plan_);
   at::Tensor* s = &states_a_;
   at::Tensor* s_next = &states_b_;
-  const bool clamp = options_.clamp_to_domain && dynamics_->has_domain();
   for (int64_t t = 0; t < H; ++t) {
     sampler_->sample(t, *s, plan_rows_[t], sample_rows_[t]);
-    models_.step(*s, sample_rows_[t], *s_next, &reward_rows_[t]);
-    if (clamp) clamp_rows(*s_next, dynamics_->domain_low(), dynamics_->domain_high());
+    model_->step(*s, sample_rows_[t], *s_next, reward_rows_[t]);
     std::swap(s, s_next);
   }
   const bool tail = options_.terminal_value_weight > 0;

@@ -271,6 +271,43 @@ TEST(RolloutCli, ModelsPredictEveryStepOfTheRollout) {
   EXPECT_NE(r.output.find("holds no dynamics and reward models"), std::string::npos) << r.output;
 }
 
+TEST(RolloutCli, ActsWithARunsPlannerOnItsModelsOrOnTheSimulator) {
+  const std::string dir = fresh_dir("controller");
+  // checkpoint.pt (written at the first episode's end here) holds what final.pt does not: SAC's critics and
+  // the dynamics model's domain; the planner is built from it as the run built it.
+  Result r = run(kTrain + kSmall +
+                 " --method hybrid-stochastic --steps 60 eval.every=0 checkpoint.every=50 --out " + dir);
+  ASSERT_EQ(r.code, 0) << r.output;
+  const std::string rollout = std::string(HLT_ROLLOUT_BIN) + " --env pendulum --episodes 2 --max-steps 10";
+  const std::string policy = " --policy checkpoint:" + dir + "/checkpoint.pt";
+  for (const char* model : {"learned", "simulator"}) {
+    r = run(rollout + policy + " --controller stochastic_hybrid --plan-on " + model);
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_NE(r.output.find("planning on"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("over 2 episodes"), std::string::npos) << r.output;
+    // The same seed repeats itself.
+    EXPECT_EQ(run(rollout + policy + " --controller stochastic_hybrid --plan-on " + model).output, r.output);
+  }
+  // Refused: a controller without a trained run, an unknown controller, a planner the simulator cannot
+  // replace, an unknown model, and a controller whose networks the run has not (SAC has no models).
+  const std::pair<std::string, std::string> refused[] = {
+      {" --policy zero --controller stochastic_hybrid", "--controller acts with a trained run's networks"},
+      {policy + " --controller bogus", "unknown controller 'bogus'"},
+      {policy + " --controller deterministic_hybrid --plan-on simulator", "only the stochastic planners"},
+      {policy + " --controller stochastic_hybrid --plan-on dream", "--plan-on: 'learned' or 'simulator'"},
+  };
+  for (const auto& [args, word] : refused) {
+    r = run(rollout + args);
+    EXPECT_EQ(r.code, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find(word), std::string::npos) << args << "\n" << r.output;
+  }
+  const std::string sac = fresh_dir("controller_sac");
+  ASSERT_EQ(run(kTrain + kSmall + " --method sac --steps 60 eval.every=0 --out " + sac).code, 0);
+  r = run(rollout + " --policy checkpoint:" + sac + "/final.pt --controller stochastic_hybrid");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("needs a dynamics and reward model"), std::string::npos) << r.output;
+}
+
 TEST(ModelFitCli, FitsAModelThatBeatsNoChangeAndRefusesMismatchedRecordings) {
   const std::string dir = fresh_dir("model_fit");
   const std::string rollout = std::string(HLT_ROLLOUT_BIN) + " --env pendulum --policy random --frame-skip 4";

@@ -1,8 +1,9 @@
 // hlt::StochasticHybrid: the paper's Alg. 2 (Theorem 2). A warm-started action plan a_0..a_{H-1} is improved
-// each step by K rollouts of the learned dynamics and reward models with actions drawn from an
-// ActionSampler, weighted per time step by exp(J_t / lambda) p(v_t) (J_t the predicted reward-to-go), then
-// a_0 is applied. With a PolicySampler this is hybrid learning; with a FilteredNoiseSampler it is the
-// NN-MPPI baseline. All K samples move through each step as one batch of tensor operations.
+// each step by K rollouts of the learned dynamics and reward models (or another RolloutModel) with actions
+// drawn from an ActionSampler, weighted per time step by exp(J_t / lambda) p(v_t) (J_t the predicted
+// reward-to-go), then a_0 is applied. With a PolicySampler this is hybrid learning; with a
+// FilteredNoiseSampler it is the NN-MPPI baseline. All K samples move through each step as one batch of
+// tensor operations.
 #pragma once
 
 #include <functional>
@@ -12,6 +13,7 @@
 
 #include "hlt/control/action_sampler.h"
 #include "hlt/control/controller.h"
+#include "hlt/control/rollout_model.h"
 #include "hlt/nn/batched_forward.h"
 #include "hlt/nn/dynamics_model.h"
 #include "hlt/nn/reward_model.h"
@@ -119,12 +121,14 @@ RowMatrix<T> planner_weights(const RowMatrix<T>& scaled_returns, const RowMatrix
   return w;
 }
 
-// rows [B, n] (rows contiguous) clamped per column to [low, high] ([n] each, the rows' dtype), in place.
-void clamp_rows(at::Tensor& rows, const at::Tensor& low, const at::Tensor& high);
-
 class StochasticHybrid : public Controller {
  public:
   StochasticHybrid(std::shared_ptr<ActionSampler> sampler, DynamicsModel dynamics, RewardModel reward,
+                   const StochasticHybridOptions& options, GaussianPolicy fallback_policy = nullptr,
+                   std::string name = "stochastic_hybrid", TerminalValue terminal_value = nullptr);
+  // The same planner on another model of the environment (options.clamp_to_domain is then the model's
+  // business and ignored here).
+  StochasticHybrid(std::shared_ptr<ActionSampler> sampler, std::shared_ptr<RolloutModel> model,
                    const StochasticHybridOptions& options, GaussianPolicy fallback_policy = nullptr,
                    std::string name = "stochastic_hybrid", TerminalValue terminal_value = nullptr);
 
@@ -145,8 +149,7 @@ class StochasticHybrid : public Controller {
 
  private:
   std::shared_ptr<ActionSampler> sampler_;
-  DynamicsModel dynamics_;
-  ModelForward models_;
+  std::shared_ptr<RolloutModel> model_;
   StochasticHybridOptions options_;
   std::string name_;
   TerminalValue terminal_value_;

@@ -1,0 +1,54 @@
+// hlt::RolloutModel: what the stochastic planner rolls its K samples through, one step of the whole batch at
+// a time. The methods plan on their learned dynamics and reward models (LearnedRolloutModel); the tools can
+// also plan on a copy of the environment itself (agents/simulator_model.h), which measures what the same
+// planner does with a perfect model.
+#pragma once
+
+#include <cstdint>
+
+#include <ATen/core/Tensor.h>
+
+#include "hlt/nn/batched_forward.h"
+#include "hlt/nn/dynamics_model.h"
+#include "hlt/nn/reward_model.h"
+
+namespace hlt {
+
+class RolloutModel {
+ public:
+  virtual ~RolloutModel() = default;
+  virtual int64_t state_dim() const = 0;
+  virtual int64_t action_dim() const = 0;
+  // The dtype of the states, actions and rewards it reads and writes.
+  virtual at::ScalarType dtype() const = 0;
+  // Starts a planning call of `batch` rollouts, all from `start` [n] (the state the planner acts in).
+  virtual void begin(int64_t batch, const at::Tensor& start) = 0;
+  // Writes next_states [batch, n] and rewards [batch] for states [batch, n] and actions [batch, m] (rows
+  // contiguous, dtype()). The outputs are caller-owned, contiguous and of dtype().
+  virtual void step(const at::Tensor& states, const at::Tensor& actions, at::Tensor& next_states,
+                    at::Tensor& rewards) = 0;
+};
+
+// rows [B, n] (rows contiguous) clamped per column to [low, high] ([n] each, the rows' dtype), in place.
+void clamp_rows(at::Tensor& rows, const at::Tensor& low, const at::Tensor& high);
+
+// The learned dynamics and reward models, as one batched pass (ModelForward). With `clamp_to_domain` every
+// predicted state is kept inside the dynamics model's domain (the per-dimension range of the states it was
+// trained on), once it has one.
+class LearnedRolloutModel : public RolloutModel {
+ public:
+  LearnedRolloutModel(DynamicsModel dynamics, RewardModel reward, bool clamp_to_domain);
+  int64_t state_dim() const override { return dynamics_->options().state_dim; }
+  int64_t action_dim() const override { return dynamics_->options().action_dim; }
+  at::ScalarType dtype() const override { return dynamics_->fc1->weight.scalar_type(); }
+  void begin(int64_t batch, const at::Tensor& start) override;
+  void step(const at::Tensor& states, const at::Tensor& actions, at::Tensor& next_states,
+            at::Tensor& rewards) override;
+
+ private:
+  DynamicsModel dynamics_;
+  ModelForward forward_;
+  bool clamp_to_domain_;
+};
+
+}  // namespace hlt
