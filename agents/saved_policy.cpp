@@ -105,12 +105,15 @@ SavedModels load_saved_models(const std::string& path) {
 namespace hlt {
 
 SavedController load_saved_controller(const std::string& path, const std::string& controller,
-                                      std::shared_ptr<RolloutModel> plan_on) {
+                                      std::shared_ptr<RolloutModel> plan_on,
+                                      const std::vector<std::string>& overrides) {
   CheckpointReader r(path);
   SavedController out;
   read_run(r, out);
   Config config = make_train_config();
   config.merge_yaml(r.get_string("config"), path);
+  for (const std::string& kv : overrides)
+    config.apply_override(kv);
   const std::unique_ptr<Env> env = make_env(out.env);
   LearnedModels models;
   // The run's learners in its method's order build its networks (their initial weights are overwritten).

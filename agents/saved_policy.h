@@ -6,6 +6,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "envs/rollout.h"
 #include "hlt/control/controller.h"
@@ -54,7 +55,10 @@ struct SavedController {
 // it trained; its final.pt holds the networks alone, without the dynamics model's domain
 // (planner.clamp_to_data then clamps nothing) and SAC's critics (a planner.terminal_value then fails). Throws
 // hlt::Error if the checkpoint lacks a network the controller needs.
+// `overrides` (key=value, as hlt_train takes them) change the run's config before the controller is built,
+// e.g. planner.lambda=0.1 (a setting that changes a network's shape is refused by the load).
 SavedController load_saved_controller(const std::string& checkpoint_path, const std::string& controller,
-                                      std::shared_ptr<RolloutModel> plan_on = nullptr);
+                                      std::shared_ptr<RolloutModel> plan_on = nullptr,
+                                      const std::vector<std::string>& overrides = {});
 
 }  // namespace hlt

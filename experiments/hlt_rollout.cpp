@@ -6,7 +6,8 @@
 //               --policy zero|random|constant:0.5|checkpoint:PATH|expert:PATH|scripted:NAME|oracle:H,K
 //               [--frame-skip K] [--csv traj.csv] [--video out.mp4] [--strip out.png] [--demos out.hltd]
 //               [--perception] [--models CHECKPOINT --predictions pred.csv]
-//               [--controller stochastic_hybrid [--plan-on learned|simulator]] (with checkpoint:PATH)
+//               [--controller stochastic_hybrid [--plan-on learned|simulator] [key=value ...]]
+//               (with checkpoint:PATH)
 #include <algorithm>
 #include <cmath>
 #include <iostream>
@@ -185,8 +186,9 @@ struct Options {
   std::string models;       // a checkpoint whose dynamics and reward models predict every step
   std::string predictions;  // where their predictions go (CSV)
   std::string controller;   // act with this controller of the checkpoint's run instead of its policy's mean
-  std::string plan_on =
-      "learned";  // the stochastic planners' model: the run's learned models or the simulator
+  // The stochastic planners' model with --controller: the run's learned models or the simulator.
+  std::string plan_on = "learned";
+  std::vector<std::string> overrides;  // key=value changes to the run's config with --controller
 };
 
 // The learned models' one-step predictions next to what the environment did: per step the observation's
@@ -261,6 +263,9 @@ int run(Options o, bool frame_skip_given) {
   check(o.controller.empty() || saved,
         "--controller acts with a trained run's networks: give --policy "
         "checkpoint:PATH");
+  check(
+      o.overrides.empty() || !o.controller.empty(),
+      "key=value overrides change the run's config for --controller; without it there is nothing to change");
   check(o.plan_on == "learned" || o.controller == "stochastic_hybrid" || o.controller == "mppi",
         "--plan-on simulator: only the stochastic planners (--controller stochastic_hybrid or mppi) plan "
         "on the simulator");
@@ -268,8 +273,8 @@ int run(Options o, bool frame_skip_given) {
   if (!o.controller.empty()) {
     std::shared_ptr<RolloutModel> plan_on;
     if (o.plan_on == "simulator") plan_on = std::make_shared<SimulatorRolloutModel>(*env, at::kFloat);
-    SavedController c =
-        load_saved_controller(o.policy.substr(std::string(kCheckpointPrefix).size()), o.controller, plan_on);
+    SavedController c = load_saved_controller(o.policy.substr(std::string(kCheckpointPrefix).size()),
+                                              o.controller, plan_on, o.overrides);
     controller = std::move(c.controller);
     // The planner's samples come from LibTorch's generator: its own stream, as the policy's.
     torch::manual_seed(derive_seed(o.seed, 2));
@@ -439,6 +444,9 @@ int run_tool(int argc, char** argv) {
                  "copy of the 'simulator' (a perfect model and the true reward: what the planner can do "
                  "with better models)")
       ->capture_default_str();
+  app.add_option("overrides", o.overrides,
+                 "With --controller: key=value changes to the run's config before the controller is built, "
+                 "e.g. planner.lambda=0.1");
   if (const std::optional<int> code = hlt::parse_command_line(app, argc, argv)) return *code;
   hlt::check_finite_flags(app);
   if (list) {

@@ -288,13 +288,21 @@ TEST(RolloutCli, ActsWithARunsPlannerOnItsModelsOrOnTheSimulator) {
     // The same seed repeats itself.
     EXPECT_EQ(run(rollout + policy + " --controller stochastic_hybrid --plan-on " + model).output, r.output);
   }
+  // key=value overrides change the run's config before the planner is built: three samples plan otherwise.
+  const std::string three =
+      run(rollout + policy + " --controller stochastic_hybrid planner.samples=3").output;
+  EXPECT_NE(three.find("over 2 episodes"), std::string::npos) << three;
+  EXPECT_NE(three, run(rollout + policy + " --controller stochastic_hybrid").output);
   // Refused: a controller without a trained run, an unknown controller, a planner the simulator cannot
-  // replace, an unknown model, and a controller whose networks the run has not (SAC has no models).
+  // replace, an unknown model, overrides without a controller or of unknown keys, and a controller whose
+  // networks the run has not (SAC has no models).
   const std::pair<std::string, std::string> refused[] = {
       {" --policy zero --controller stochastic_hybrid", "--controller acts with a trained run's networks"},
       {policy + " --controller bogus", "unknown controller 'bogus'"},
       {policy + " --controller deterministic_hybrid --plan-on simulator", "only the stochastic planners"},
       {policy + " --controller stochastic_hybrid --plan-on dream", "--plan-on: 'learned' or 'simulator'"},
+      {policy + " planner.lambda=2", "overrides change the run's config for --controller"},
+      {policy + " --controller stochastic_hybrid planner.lamda=2", "unknown config key 'planner.lamda'"},
   };
   for (const auto& [args, word] : refused) {
     r = run(rollout + args);
