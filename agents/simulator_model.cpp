@@ -7,9 +7,12 @@
 
 namespace hlt {
 
-SimulatorRolloutModel::SimulatorRolloutModel(const Env& env, at::ScalarType dtype)
-    : env_(env), sim_(make_env_like(env)), dtype_(dtype) {
+SimulatorRolloutModel::SimulatorRolloutModel(const Env& env, at::ScalarType dtype, RewardModel reward)
+    : env_(env), sim_(make_env_like(env)), dtype_(dtype), reward_(std::move(reward)) {
   check(dtype == at::kFloat || dtype == at::kDouble, "SimulatorRolloutModel: dtype must be float or double");
+  check(reward_.is_empty() || (reward_->options().state_dim == env.observation_dim() &&
+                               reward_->options().action_dim == env.action_dim()),
+        "SimulatorRolloutModel: the reward model's sizes are not {}'s", env.name());
 }
 
 void SimulatorRolloutModel::begin(int64_t batch, const at::Tensor& start) {
@@ -29,6 +32,11 @@ void SimulatorRolloutModel::step(const at::Tensor& states, const at::Tensor& act
   // Through doubles: the environments' own type.
   const at::Tensor s = states.to(at::kDouble).contiguous(), a = actions.to(at::kDouble).contiguous();
   at::Tensor next = torch::empty({K, n}, s.options()), r = torch::zeros({K}, s.options());
+  at::Tensor learned;
+  if (!reward_.is_empty()) {
+    const auto dtype = reward_->parameters().front().scalar_type();
+    learned = reward_->forward(states.to(dtype), actions.to(dtype)).reshape({K}).to(at::kDouble).contiguous();
+  }
   for (int64_t k = 0; k < K; ++k) {
     const size_t i = static_cast<size_t>(k);
     Eigen::Map<Eigen::VectorXd> next_k(next.data_ptr<double>() + k * n, n);
@@ -39,7 +47,7 @@ void SimulatorRolloutModel::step(const at::Tensor& states, const at::Tensor& act
     sim_->restore_state(snapshots_[i]);
     const StepResult result = sim_->step(Eigen::Map<const Eigen::VectorXd>(a.data_ptr<double>() + k * m, m));
     next_k = result.observation;
-    r.data_ptr<double>()[k] = result.reward;
+    r.data_ptr<double>()[k] = learned.defined() ? learned.data_ptr<double>()[k] : result.reward;
     snapshots_[i] = sim_->save_state();
     ended_[i] = result.done();
   }

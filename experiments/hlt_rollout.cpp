@@ -6,7 +6,8 @@
 //               --policy zero|random|constant:0.5|checkpoint:PATH|expert:PATH|scripted:NAME|oracle:H,K
 //               [--frame-skip K] [--csv traj.csv] [--video out.mp4] [--strip out.png] [--demos out.hltd]
 //               [--perception] [--models CHECKPOINT --predictions pred.csv]
-//               [--controller stochastic_hybrid [--plan-on learned|simulator] [key=value ...]]
+//               [--controller stochastic_hybrid [--plan-on learned|simulator|simulator-dynamics]
+//               [key=value ...]]
 //               (with checkpoint:PATH)
 #include <algorithm>
 #include <cmath>
@@ -258,8 +259,8 @@ int run(Options o, bool frame_skip_given) {
   check(o.width >= 16 && o.height >= 16, "--width and --height must be at least 16");
   // The policy's randomness is its own stream, so changing the policy never changes the environment's starts.
   std::unique_ptr<PolicySource> policy = make_policy(o.policy, saved, *env, derive_seed(o.seed, 1));
-  check(o.plan_on == "learned" || o.plan_on == "simulator", "--plan-on: 'learned' or 'simulator', not '{}'",
-        o.plan_on);
+  check(o.plan_on == "learned" || o.plan_on == "simulator" || o.plan_on == "simulator-dynamics",
+        "--plan-on: 'learned', 'simulator' or 'simulator-dynamics', not '{}'", o.plan_on);
   check(o.controller.empty() || saved,
         "--controller acts with a trained run's networks: give --policy "
         "checkpoint:PATH");
@@ -267,20 +268,27 @@ int run(Options o, bool frame_skip_given) {
       o.overrides.empty() || !o.controller.empty(),
       "key=value overrides change the run's config for --controller; without it there is nothing to change");
   check(o.plan_on == "learned" || o.controller == "stochastic_hybrid" || o.controller == "mppi",
-        "--plan-on simulator: only the stochastic planners (--controller stochastic_hybrid or mppi) plan "
-        "on the simulator");
+        "--plan-on {}: only the stochastic planners (--controller stochastic_hybrid or mppi) plan on the "
+        "simulator",
+        o.plan_on);
   std::unique_ptr<Controller> controller;
   if (!o.controller.empty()) {
     std::shared_ptr<RolloutModel> plan_on;
+    const std::string path = o.policy.substr(std::string(kCheckpointPrefix).size());
     if (o.plan_on == "simulator") plan_on = std::make_shared<SimulatorRolloutModel>(*env, at::kFloat);
-    SavedController c = load_saved_controller(o.policy.substr(std::string(kCheckpointPrefix).size()),
-                                              o.controller, plan_on, o.overrides);
+    // The simulator's transitions scored by the run's own reward model.
+    if (o.plan_on == "simulator-dynamics")
+      plan_on = std::make_shared<SimulatorRolloutModel>(*env, at::kFloat, load_saved_models(path).reward);
+    SavedController c = load_saved_controller(path, o.controller, plan_on, o.overrides);
     controller = std::move(c.controller);
     // The planner's samples come from LibTorch's generator: its own stream, as the policy's.
     torch::manual_seed(derive_seed(o.seed, 2));
     policy = std::make_unique<ControllerPolicy>(*controller);
-    fmt::print("acting with the run's {} controller, planning on {}\n", o.controller,
-               o.plan_on == "simulator" ? "a copy of the simulator (a perfect model)" : "its learned models");
+    const char* model = o.plan_on == "simulator" ? "a copy of the simulator (a perfect model)"
+                        : o.plan_on == "simulator-dynamics"
+                            ? "a copy of the simulator scored by its learned reward"
+                            : "its learned models";
+    fmt::print("acting with the run's {} controller, planning on {}\n", o.controller, model);
   }
   // Output names are checked before any work is done.
   if (!o.video.empty()) {
@@ -440,9 +448,10 @@ int run_tool(int argc, char** argv) {
       "With --policy checkpoint:PATH: act with this controller of the run (e.g. stochastic_hybrid, "
       "built from the run's config and networks) instead of the policy's mean");
   app.add_option("--plan-on", o.plan_on,
-                 "With --controller stochastic_hybrid or mppi: plan on the run's 'learned' models or on a "
+                 "With --controller stochastic_hybrid or mppi: plan on the run's 'learned' models, on a "
                  "copy of the 'simulator' (a perfect model and the true reward: what the planner can do "
-                 "with better models)")
+                 "with better models), or on 'simulator-dynamics' (the simulator's transitions scored by "
+                 "the run's learned reward model)")
       ->capture_default_str();
   app.add_option("overrides", o.overrides,
                  "With --controller: key=value changes to the run's config before the controller is built, "

@@ -84,6 +84,35 @@ TEST(SimulatorRolloutModel, AnEndedRolloutStaysWhereItEndedAndEarnsNothing) {
   EXPECT_THROW(model.step(three, torch::zeros({3, 1}), next3, r3), Error);
 }
 
+TEST(SimulatorRolloutModel, ALearnedRewardModelScoresTheSimulatedTransitions) {
+  auto env = make_env("pendulum");
+  env->reset(4);
+  const int64_t K = 4, n = env->observation_dim();
+  RewardModelOptions ro;
+  ro.state_dim = n;
+  ro.action_dim = 1;
+  ro.hidden = 8;
+  RewardModel reward(ro);
+  SimulatorRolloutModel truth(*env, at::kFloat), scored(*env, at::kFloat, reward);
+  at::Tensor states = torch::randn({K, n}), actions = torch::rand({K, 1}) * 2 - 1;
+  at::Tensor next_truth = torch::empty({K, n}), r_truth = torch::empty({K});
+  at::Tensor next_scored = torch::empty({K, n}), r_scored = torch::empty({K});
+  const at::Tensor start = torch::zeros({n});
+  truth.begin(K, start);
+  scored.begin(K, start);
+  truth.step(states, actions, next_truth, r_truth);
+  scored.step(states, actions, next_scored, r_scored);
+  // The same transitions; the rewards are the model's r(s_t, a_t), not the environment's.
+  EXPECT_TRUE(torch::equal(next_truth, next_scored));
+  torch::InferenceMode guard;
+  EXPECT_TRUE(torch::allclose(r_scored, reward->forward(states, actions).reshape({K}), 1e-6, 1e-6));
+  EXPECT_FALSE(torch::allclose(r_scored, r_truth));
+  // A reward model of other sizes is refused.
+  RewardModelOptions wrong = ro;
+  wrong.state_dim = n + 1;
+  EXPECT_THROW(SimulatorRolloutModel(*env, at::kFloat, RewardModel(wrong)), Error);
+}
+
 TEST(SimulatorRolloutModel, TheStochasticHybridPlanningOnItSwingsThePendulumUp) {
   // An untrained policy and no learned models: the planner's samples ranked by the simulator itself.
   torch::manual_seed(0);

@@ -280,7 +280,7 @@ TEST(RolloutCli, ActsWithARunsPlannerOnItsModelsOrOnTheSimulator) {
   ASSERT_EQ(r.code, 0) << r.output;
   const std::string rollout = std::string(HLT_ROLLOUT_BIN) + " --env pendulum --episodes 2 --max-steps 10";
   const std::string policy = " --policy checkpoint:" + dir + "/checkpoint.pt";
-  for (const char* model : {"learned", "simulator"}) {
+  for (const char* model : {"learned", "simulator", "simulator-dynamics"}) {
     r = run(rollout + policy + " --controller stochastic_hybrid --plan-on " + model);
     ASSERT_EQ(r.code, 0) << r.output;
     EXPECT_NE(r.output.find("planning on"), std::string::npos) << r.output;
@@ -300,7 +300,7 @@ TEST(RolloutCli, ActsWithARunsPlannerOnItsModelsOrOnTheSimulator) {
       {" --policy zero --controller stochastic_hybrid", "--controller acts with a trained run's networks"},
       {policy + " --controller bogus", "unknown controller 'bogus'"},
       {policy + " --controller deterministic_hybrid --plan-on simulator", "only the stochastic planners"},
-      {policy + " --controller stochastic_hybrid --plan-on dream", "--plan-on: 'learned' or 'simulator'"},
+      {policy + " --controller stochastic_hybrid --plan-on dream", "--plan-on: 'learned', 'simulator' or 'simulator-dynamics'"},
       {policy + " planner.lambda=2", "overrides change the run's config for --controller"},
       {policy + " --controller stochastic_hybrid planner.lamda=2", "unknown config key 'planner.lamda'"},
   };
