@@ -37,6 +37,30 @@ void read_run(CheckpointReader& r, Saved& out) {
   out.frame_skip = static_cast<int>(r.get_int("frame_skip"));
 }
 
+// The resolved config the checkpoint's run wrote, with `overrides` (key=value) applied.
+Config stored_config(CheckpointReader& r, const std::vector<std::string>& overrides = {}) {
+  Config config = make_train_config();
+  config.merge_yaml(r.get_string("config"), r.path());
+  for (const std::string& kv : overrides)
+    config.apply_override(kv);
+  return config;
+}
+
+// The learners `names` (in that order, as the run built them) create the run's networks in `models`, sized by
+// its environment; their initial weights are for the caller to overwrite from the checkpoint. `config` must
+// outlive the learners.
+std::vector<std::unique_ptr<Learner>> build_learners(const Config& config, const std::string& env_name,
+                                                     const std::vector<std::string>& names,
+                                                     LearnedModels& models) {
+  const std::unique_ptr<Env> env = make_env(env_name);
+  LearnerContext context{config, env->observation_dim(),  env->action_dim(), 0,
+                         models, env->observation_scale()};
+  std::vector<std::unique_ptr<Learner>> learners;
+  for (const std::string& name : names)
+    learners.push_back(make_learner(name, context));
+  return learners;
+}
+
 }  // namespace
 
 SavedPolicy load_saved_policy(const std::string& path) {
@@ -83,14 +107,10 @@ SavedModels load_saved_models(const std::string& path) {
   check(r.has("dynamics") && r.has("reward"),
         "checkpoint {} holds no dynamics and reward models (it was written by method '{}')", path,
         out.method);
-  Config config = make_train_config();
-  config.merge_yaml(r.get_string("config"), path);
-  const std::unique_ptr<Env> env = make_env(out.env);
+  const Config config = stored_config(r);
   LearnedModels models;
-  LearnerContext context{config, env->observation_dim(),  env->action_dim(), 0,
-                         models, env->observation_scale()};
   // The model learner's factory builds both networks exactly as the run did.
-  make_learner("models", context);
+  build_learners(config, out.env, {"models"}, models);
   r.load_module("dynamics", *models.dynamics);
   r.load_module("reward", *models.reward);
   models.dynamics->eval();
@@ -100,28 +120,19 @@ SavedModels load_saved_models(const std::string& path) {
   return out;
 }
 
-}  // namespace hlt
-
-namespace hlt {
-
 SavedController load_saved_controller(const std::string& path, const std::string& controller,
                                       std::shared_ptr<RolloutModel> plan_on,
                                       const std::vector<std::string>& overrides) {
   CheckpointReader r(path);
   SavedController out;
   read_run(r, out);
-  Config config = make_train_config();
-  config.merge_yaml(r.get_string("config"), path);
-  for (const std::string& kv : overrides)
-    config.apply_override(kv);
-  const std::unique_ptr<Env> env = make_env(out.env);
+  const Config config = stored_config(r, overrides);
   LearnedModels models;
-  // The run's learners in its method's order build its networks (their initial weights are overwritten).
-  LearnerContext context{config, env->observation_dim(),  env->action_dim(), 0,
-                         models, env->observation_scale()};
-  std::vector<std::unique_ptr<Learner>> learners;
+  // The run's learners in its method's order build its networks.
+  std::vector<std::string> names;
   for (const LearnerUse& use : find_method(out.method).learners)
-    learners.push_back(make_learner(use.learner, context));
+    names.push_back(use.learner);
+  const std::vector<std::unique_ptr<Learner>> learners = build_learners(config, out.env, names, models);
   // As the trainer resumes: the shared networks, then each learner's own state (SAC's critics, the
   // dynamics model's domain) where the file has it.
   auto load = [&](const char* name, auto& module) {

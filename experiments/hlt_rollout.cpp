@@ -262,8 +262,7 @@ int run(Options o, bool frame_skip_given) {
   check(o.plan_on == "learned" || o.plan_on == "simulator" || o.plan_on == "simulator-dynamics",
         "--plan-on: 'learned', 'simulator' or 'simulator-dynamics', not '{}'", o.plan_on);
   check(o.controller.empty() || saved,
-        "--controller acts with a trained run's networks: give --policy "
-        "checkpoint:PATH");
+        "--controller acts with a trained run's networks: give --policy checkpoint:PATH");
   check(
       o.overrides.empty() || !o.controller.empty(),
       "key=value overrides change the run's config for --controller; without it there is nothing to change");
