@@ -125,6 +125,7 @@ std::unique_ptr<Learner> make_model_learner(LearnerContext& context) {
     o.state_dim = n;
     o.action_dim = a;
     o.hidden = c.get_int("model.reward_hidden");
+    o.reads_next_state = c.get_string("model.reward_input") == "next_state";
     if (normalize) set_input_normalisation(context, "model.normalize_inputs", o);
     m.reward = RewardModel(o);
   }

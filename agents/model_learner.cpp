@@ -3,6 +3,7 @@
 #include <torch/torch.h>
 
 #include "hlt/core/checkpoint.h"
+#include "hlt/util/error.h"
 
 namespace hlt {
 namespace {
@@ -12,6 +13,10 @@ const char* const kDomainHigh = "models.domain_high";
 
 ModelLearner::ModelLearner(DynamicsModel dynamics, RewardModel reward, const ModelLearnerOptions& options)
     : options_(options), dynamics_(std::move(dynamics)), reward_(std::move(reward)) {
+  check(!reward_->options().reads_next_state || options_.reward_gamma == 0.0,
+        "a reward model of the next state (model.reward_input next_state) is fitted by regression: "
+        "model.reward_gamma must be 0, got {}",
+        options_.reward_gamma);
   std::vector<torch::Tensor> params = dynamics_->parameters();
   for (auto& p : reward_->parameters())
     params.push_back(p);
@@ -33,9 +38,11 @@ ModelLosses ModelLearner::update(const Batch& b) {
   losses.dynamics = dynamics_->loss_with_gradient(b.states, b.actions, b.next_states);
   for (auto& w : decayed_)
     w.mutable_grad().add_(w, options_.weight_decay);
+  // r(s', a) regresses on the reached state; with gamma 0 the TD target's next terms do not count.
+  const torch::Tensor& reward_state = reward_->options().reads_next_state ? b.next_states : b.states;
   losses.reward =
-      reward_->td_loss_with_gradient(b.states, b.actions, b.rewards, b.next_states, b.next_actions, b.dones,
-                                     options_.reward_gamma, options_.reward_weight);
+      reward_->td_loss_with_gradient(reward_state, b.actions, b.rewards, b.next_states, b.next_actions,
+                                     b.dones, options_.reward_gamma, options_.reward_weight);
   optimizer_->step();
   // The domain grows with the data the dynamics model is fitted to (for planner.clamp_to_data).
   dynamics_->extend_domain(b.states);

@@ -1,5 +1,7 @@
 #include "agents/simulator_model.h"
 
+#include <vector>
+
 #include <torch/torch.h>
 
 #include "envs/registry.h"
@@ -32,11 +34,9 @@ void SimulatorRolloutModel::step(const at::Tensor& states, const at::Tensor& act
   // Through doubles: the environments' own type.
   const at::Tensor s = states.to(at::kDouble).contiguous(), a = actions.to(at::kDouble).contiguous();
   at::Tensor next = torch::empty({K, n}, s.options()), r = torch::zeros({K}, s.options());
-  at::Tensor learned;
-  if (!reward_.is_empty()) {
-    const auto dtype = reward_->parameters().front().scalar_type();
-    learned = reward_->forward(states.to(dtype), actions.to(dtype)).reshape({K}).to(at::kDouble).contiguous();
-  }
+  // A learned reward scores each live rollout's step, from the state it starts in or (r(s', a) models) the
+  // one it reaches; a rollout that has ended earns nothing more.
+  const std::vector<bool> ended_before = ended_;
   for (int64_t k = 0; k < K; ++k) {
     const size_t i = static_cast<size_t>(k);
     Eigen::Map<Eigen::VectorXd> next_k(next.data_ptr<double>() + k * n, n);
@@ -47,9 +47,18 @@ void SimulatorRolloutModel::step(const at::Tensor& states, const at::Tensor& act
     sim_->restore_state(snapshots_[i]);
     const StepResult result = sim_->step(Eigen::Map<const Eigen::VectorXd>(a.data_ptr<double>() + k * m, m));
     next_k = result.observation;
-    r.data_ptr<double>()[k] = learned.defined() ? learned.data_ptr<double>()[k] : result.reward;
+    r.data_ptr<double>()[k] = result.reward;
     snapshots_[i] = sim_->save_state();
     ended_[i] = result.done();
+  }
+  if (!reward_.is_empty()) {
+    const auto dtype = reward_->parameters().front().scalar_type();
+    const at::Tensor learned = reward_->predict(states.to(dtype), actions.to(dtype), next.to(dtype))
+                                   .reshape({K})
+                                   .to(at::kDouble)
+                                   .contiguous();
+    for (int64_t k = 0; k < K; ++k)
+      r.data_ptr<double>()[k] = ended_before[static_cast<size_t>(k)] ? 0.0 : learned.data_ptr<double>()[k];
   }
   next_states.copy_(next);
   rewards.copy_(r.reshape(rewards.sizes()));

@@ -36,7 +36,8 @@ class SimulatorRolloutModel : public RolloutModel {
   const Env& env_;
   std::unique_ptr<Env> sim_;
   at::ScalarType dtype_;
-  RewardModel reward_;  // if set: r(s_t, a_t) of the rollout's states and actions, instead of the true reward
+  RewardModel
+      reward_;  // if set: its prediction of every step (RewardModelImpl::predict), not the true reward
   std::vector<EnvState> snapshots_;
   std::vector<bool> ended_;
 };

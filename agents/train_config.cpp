@@ -89,6 +89,12 @@ Config make_train_config() {
       .add_double("model.lr", 3e-3, "Adam learning rate of the models", 1e-8, 1.0)
       .add_double("model.reward_gamma", 0.95,
                   "discount of the reward model's TD target (0: plain regression)", 0.0, 1.0)
+      .add_string(
+          "model.reward_input", "state",
+          "what the reward model reads: the state a step starts from, r(s, a), or the state it reaches, "
+          "r(s', a) (for rewards defined on the observation a step returns; needs model.reward_gamma 0; "
+          "stochastic planners only)",
+          {"state", "next_state"})
       .add_double("model.reward_weight", 0.5, "weight of the reward TD loss in the joint model loss", 0.0,
                   1000.0)
       .add_double("model.weight_decay", 0.0,

@@ -1,7 +1,8 @@
 // hlt_model_fit: fits a config's learned models (model.* keys: the dynamics and reward models and their
-// learner) to recorded transitions and scores the dynamics model, as it trains, on those and on other
-// recordings against predicting "no change" (ModelCheck). A model setting can then be judged on the data a
-// task gives it, in seconds, without a training run around it.
+// learner) to recorded transitions and scores them, as they train, on those and on other recordings: the
+// dynamics model against predicting "no change" (ModelCheck), the reward model (on the recorded states)
+// against predicting the recordings' mean reward. A model setting can then be judged on the data a task
+// gives it, in seconds, without a training run around it.
 //
 //   hlt_model_fit --env ENV --train FILE.hltd [--train ...] --test FILE.hltd [--test ...]
 //                 [--updates N] [--report-every N] [--seed S] [--method M] [--config FILE] [key=value ...]
@@ -13,6 +14,8 @@
 #include <optional>
 #include <string>
 #include <vector>
+
+#include <torch/torch.h>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -66,6 +69,39 @@ void fill(const Recordings& r, ModelCheck& check, ReplayBuffer* buffer = nullptr
       }
     }
   }
+}
+
+// The recorded steps as tensors, for scoring the reward model.
+struct RewardSet {
+  torch::Tensor states, actions, next_states, rewards;
+};
+
+RewardSet reward_set(const Recordings& r, int n, int m) {
+  std::vector<float> s, a, s2, rw;
+  for (const Demonstrations& d : r.files)
+    for (const std::vector<DemoStep>& episode : d.episodes())
+      for (const DemoStep& step : episode) {
+        s.insert(s.end(), step.observation.data(), step.observation.data() + n);
+        a.insert(a.end(), step.action.data(), step.action.data() + m);
+        s2.insert(s2.end(), step.next_observation.data(), step.next_observation.data() + n);
+        rw.push_back(static_cast<float>(step.reward));
+      }
+  const int64_t k = static_cast<int64_t>(rw.size());
+  auto tensor = [](std::vector<float>& v, int64_t rows, int64_t cols) {
+    return torch::from_blob(v.data(), {rows, cols}, torch::kFloat32).clone();
+  };
+  return {tensor(s, k, n), tensor(a, k, m), tensor(s2, k, n), tensor(rw, k, 1)};
+}
+
+// rms(predicted - recorded reward) / rms(recorded - its mean): 0 exact, 1 no better than the mean. The
+// model reads the recorded states (for r(s', a), the recorded next state): its own error, apart from the
+// dynamics model's.
+double reward_error_ratio(RewardModelImpl& reward, const RewardSet& set) {
+  torch::InferenceMode guard;
+  const torch::Tensor predicted = reward.predict(set.states, set.actions, set.next_states);
+  const double error = (predicted - set.rewards).square().mean().sqrt().item<double>();
+  const double spread = (set.rewards - set.rewards.mean()).square().mean().sqrt().item<double>();
+  return error / spread;
 }
 
 std::string score_text(const ModelScore& s) {
@@ -130,15 +166,20 @@ int run(int argc, char** argv) {
       env_name, config.get_int("model.hidden"), config.get_string("model.activation"),
       config.get_double("model.lr"), config.get_bool("model.normalize_inputs"), train.transitions,
       test.transitions, frame_skip);
-  fmt::print("updates | dynamics loss | error / 'no change' on --train | on --test\n");
+  const RewardSet train_rewards = reward_set(train, n, m), test_rewards = reward_set(test, n, m);
+  fmt::print(
+      "updates | dynamics loss | error / 'no change' on --train | on --test | reward error / spread on "
+      "--train | on --test (model.reward_input {})\n",
+      config.get_string("model.reward_input"));
   ModelScore on_test;
   for (int64_t u = 1; u <= updates; ++u) {
     const NamedLosses losses = learner->train(buffer.sample(batch_size));
     if (u % report_every == 0 || u == updates) {
       const ModelScore on_train = train_check.score(*models.dynamics, *env);
       on_test = test_check.score(*models.dynamics, *env);
-      fmt::print("{} | {:.4g} | {} | {}\n", u, losses.front().value, score_text(on_train),
-                 score_text(on_test));
+      fmt::print("{} | {:.4g} | {} | {} | {:.3f} | {:.3f}\n", u, losses.front().value, score_text(on_train),
+                 score_text(on_test), reward_error_ratio(*models.reward, train_rewards),
+                 reward_error_ratio(*models.reward, test_rewards));
     }
   }
   // The last report's scores (u == updates always reports).

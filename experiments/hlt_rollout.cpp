@@ -193,7 +193,8 @@ struct Options {
 };
 
 // The learned models' one-step predictions next to what the environment did: per step the observation's
-// next value and the reward, predicted from the step's observation and action.
+// next value and the reward, predicted from the step's observation and action (a reward model of the next
+// state reads the predicted one, as the planner does).
 class PredictionCsv {
  public:
   PredictionCsv(SavedModels models, int observation_dim) : models_(std::move(models)) {
@@ -206,8 +207,9 @@ class PredictionCsv {
     torch::InferenceMode guard;
     const at::Tensor s = observation_tensor(t.observation).unsqueeze(0);
     const at::Tensor a = observation_tensor(t.action).unsqueeze(0);
-    const Eigen::VectorXd next = action_vector(models_.dynamics->forward(s, a));
-    const double r = models_.reward->forward(s, a).item<double>();
+    const at::Tensor predicted = models_.dynamics->forward(s, a);
+    const Eigen::VectorXd next = action_vector(predicted);
+    const double r = models_.reward->predict(s, a, predicted).item<double>();
     text_ += fmt::format("{},{}", episode, t.step);
     for (Eigen::Index i = 0; i < next.size(); ++i)
       text_ += fmt::format(",{:.17g}", next[i]);

@@ -90,6 +90,12 @@ DeterministicHybrid::DeterministicHybrid(GaussianPolicy policy, DynamicsModel dy
       options_(options),
       name_(std::move(name)) {
   check(options.horizon >= 1, "{}: horizon must be >= 1", name_);
+  // The adjoint sweep differentiates r(s_t, a_t); a reward of the reached state would need f's Jacobian
+  // inside each step's reward term.
+  check(!reward_->options().reads_next_state,
+        "{}: the reward model reads the next state (model.reward_input next_state); the adjoint sweep needs "
+        "r(s, a) (model.reward_input state)",
+        name_);
   if (!policy_.is_empty()) policy_forward_.emplace(policy_);
 }
 

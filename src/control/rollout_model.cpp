@@ -1,5 +1,7 @@
 #include "hlt/control/rollout_model.h"
 
+#include <ATen/core/grad_mode.h>
+
 #include "hlt/util/error.h"
 
 namespace hlt {
@@ -21,6 +23,7 @@ void clamp_rows(at::Tensor& rows, const at::Tensor& low, const at::Tensor& high)
 
 LearnedRolloutModel::LearnedRolloutModel(DynamicsModel dynamics, RewardModel reward, bool clamp_to_domain)
     : dynamics_(dynamics),
+      reward_(reward),
       forward_(std::move(dynamics), std::move(reward)),
       clamp_to_domain_(clamp_to_domain) {}
 
@@ -30,9 +33,15 @@ void LearnedRolloutModel::begin(int64_t batch, const at::Tensor&) {
 
 void LearnedRolloutModel::step(const at::Tensor& states, const at::Tensor& actions, at::Tensor& next_states,
                                at::Tensor& rewards) {
-  forward_.step(states, actions, next_states, &rewards);
+  const bool next_state_reward = reward_->options().reads_next_state;
+  forward_.step(states, actions, next_states, next_state_reward ? nullptr : &rewards);
   if (clamp_to_domain_ && dynamics_->has_domain())
     clamp_rows(next_states, dynamics_->domain_low(), dynamics_->domain_high());
+  // A reward of the reached state scores the state the rollout goes on from (after the clamp).
+  if (next_state_reward) {
+    at::NoGradGuard no_grad;
+    rewards.copy_(reward_->forward(next_states, actions).reshape(rewards.sizes()));
+  }
 }
 
 }  // namespace hlt

@@ -8,6 +8,7 @@
 
 #include "agents/model_learner.h"
 #include "hlt/core/checkpoint.h"
+#include "hlt/util/error.h"
 
 namespace hlt {
 namespace {
@@ -192,6 +193,46 @@ TEST(ModelLearner, FitsLinearDynamicsAndReward) {
   EXPECT_NEAR(pred[0][0].item<float>(), 0.35, 0.02);
   EXPECT_NEAR(pred[0][1].item<float>(), -0.23, 0.02);
   EXPECT_NEAR(rew->forward(s, a).item<float>(), -0.09, 0.03);
+}
+
+// A reward model of the next state (model.reward_input next_state) regresses r on (s', a): the first
+// update's reward loss is the hand-computed mean((r - r(s', a))^2) before it, not mean((r - r(s, a))^2); and
+// such a model cannot take a TD target (gamma > 0 is refused).
+TEST(ModelLearner, ARewardModelOfTheNextStateRegressesOnTheReachedState) {
+  torch::manual_seed(5);
+  const int n = 2, m = 1;
+  DynamicsModel dyn(DynamicsModelOptions{n, m, 16, Activation::kSin});
+  RewardModelOptions ro{n, m, 16};
+  ro.reads_next_state = true;
+  RewardModel rew(ro);
+  EXPECT_THROW(ModelLearner(dyn, rew, ModelLearnerOptions{3e-3, 0.5, 0.5}), Error);
+  ModelLearner learner(dyn, rew, ModelLearnerOptions{3e-3, 0.0, 0.5});
+  ReplayBuffer rb(256, n, m, 0);
+  std::mt19937_64 rng(1);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int i = 0; i < 256; ++i) {
+    double s[2] = {u(rng), u(rng)}, a[1] = {u(rng)};
+    double s2[2] = {s[0] + 0.5 * a[0], s[1] - 0.5 * s[0]};
+    rb.add(s, a, -s2[0] * s2[0], s2, a, false);
+  }
+  const Batch batch = rb.all();
+  double on_next = 0, on_state = 0;
+  {
+    torch::NoGradGuard g;
+    on_next = (batch.rewards - rew->forward(batch.next_states, batch.actions)).square().mean().item<double>();
+    on_state = (batch.rewards - rew->forward(batch.states, batch.actions)).square().mean().item<double>();
+  }
+  const ModelLosses first = learner.update(batch);
+  EXPECT_NEAR(first.reward, on_next, 1e-6 * on_next);
+  EXPECT_GT(std::abs(on_state - on_next), 1e-3 * on_next);
+  // And it fits r = -s'_0^2 as a function of s'.
+  ModelLosses last;
+  for (int i = 0; i < 1500; ++i)
+    last = learner.update(rb.sample(128));
+  EXPECT_LT(last.reward, 0.02 * first.reward);
+  torch::NoGradGuard g;
+  EXPECT_NEAR(rew->forward(torch::tensor({{0.6f, 0.1f}}), torch::tensor({{0.2f}})).item<float>(), -0.36,
+              0.05);
 }
 
 // The decay adds weight_decay * W to the likelihood's gradient of each weight matrix, and nothing to the

@@ -107,6 +107,17 @@ TEST(SimulatorRolloutModel, ALearnedRewardModelScoresTheSimulatedTransitions) {
   torch::InferenceMode guard;
   EXPECT_TRUE(torch::allclose(r_scored, reward->forward(states, actions).reshape({K}), 1e-6, 1e-6));
   EXPECT_FALSE(torch::allclose(r_scored, r_truth));
+  // A reward model of the next state scores the states the simulator reached.
+  RewardModelOptions next_options = ro;
+  next_options.reads_next_state = true;
+  RewardModel next_reward(next_options);
+  SimulatorRolloutModel scored_next(*env, at::kFloat, next_reward);
+  at::Tensor next_next = torch::empty({K, n}), r_next = torch::empty({K});
+  scored_next.begin(K, start);
+  scored_next.step(states, actions, next_next, r_next);
+  EXPECT_TRUE(torch::equal(next_truth, next_next));
+  EXPECT_TRUE(torch::allclose(r_next, next_reward->forward(next_truth, actions).reshape({K}), 1e-6, 1e-6));
+  EXPECT_FALSE(torch::allclose(r_next, next_reward->forward(states, actions).reshape({K}), 1e-4, 1e-4));
   // A reward model of other sizes is refused.
   RewardModelOptions wrong = ro;
   wrong.state_dim = n + 1;

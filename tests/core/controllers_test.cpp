@@ -52,10 +52,13 @@ std::pair<torch::Tensor, torch::Tensor> reward_to_go(
   torch::NoGradGuard g;
   auto s = s0.unsqueeze(0).expand({V.size(1), s0.size(0)});
   std::vector<torch::Tensor> r;
+  // A reward model of the next state scores the state each step reaches (after `after_step`).
+  const bool next_state_reward = md.reward->options().reads_next_state;
   for (int64_t t = 0; t < V.size(0); ++t) {
-    r.push_back(md.reward->forward(s, V[t]).squeeze(-1));
+    if (!next_state_reward) r.push_back(md.reward->forward(s, V[t]).squeeze(-1));
     s = md.dynamics->forward(s, V[t]);
     if (after_step) s = after_step(s);
+    if (next_state_reward) r.push_back(md.reward->forward(s, V[t]).squeeze(-1));
   }
   return {torch::stack(r).flip(0).cumsum(0).flip(0), s};
 }
@@ -498,6 +501,43 @@ TEST(StochasticHybrid, ClampToDomainKeepsThePredictedStatesInTheModelsDomain) {
   };
   EXPECT_TRUE(torch::allclose(w, weights_along(true), 1e-9, 1e-12));
   EXPECT_FALSE(torch::allclose(w, weights_along(false), 1e-6, 1e-9));
+}
+
+// A reward model of the next state (model.reward_input next_state) scores each step by the state it
+// reaches, after the domain clamp: the weights follow the formula with r(s_{t+1}, a_t), not r(s_t, a_t).
+// The deterministic hybrid, whose adjoint differentiates r(s_t, a_t), refuses such a model.
+TEST(StochasticHybrid, ARewardModelOfTheNextStateScoresTheStatesTheStepsReach) {
+  torch::manual_seed(4);
+  Models md = random_models(3, 2, 29);
+  RewardModelOptions ro{3, 2, 16};
+  ro.reads_next_state = true;
+  md.reward = RewardModel(ro);
+  md.reward->to(torch::kFloat64);
+  const double lambda = 0.5;
+  StochasticHybridOptions o{6, 30, lambda, true, 0.0};
+  o.clamp_to_domain = true;
+  StochasticHybrid hybrid(std::make_shared<PolicySampler>(md.policy), md.dynamics, md.reward, o, md.policy);
+  const auto s0 = torch::randn({3}, torch::kFloat64);
+  const auto low = s0 - torch::tensor({0.05, 0.5, 0.0}, torch::kFloat64);
+  const auto high = s0 + torch::tensor({0.05, 0.0, 0.5}, torch::kFloat64);
+  md.dynamics->set_domain(low, high);
+  hybrid.act(s0);
+  const auto w = hybrid.weights().clone();
+  torch::NoGradGuard g;
+  auto clamp_step = [&](const torch::Tensor& s) { return torch::max(torch::min(s, high), low); };
+  const auto J = reward_to_go(md, s0, hybrid.samples(), clamp_step).first;
+  EXPECT_TRUE(torch::allclose(w, torch::softmax(J / lambda + hybrid.log_density(), 1), 1e-9, 1e-12));
+  // The same network read as r(s_t, a_t) weighs the samples otherwise.
+  Models as_state = md;
+  RewardModelOptions state_options = ro;
+  state_options.reads_next_state = false;
+  as_state.reward = RewardModel(state_options);
+  as_state.reward->to(torch::kFloat64);
+  for (const auto& p : md.reward->named_parameters())
+    as_state.reward->named_parameters()[p.key()].copy_(p.value());
+  const auto J_state = reward_to_go(as_state, s0, hybrid.samples(), clamp_step).first;
+  EXPECT_FALSE(torch::allclose(w, torch::softmax(J_state / lambda + hybrid.log_density(), 1), 1e-6, 1e-9));
+  EXPECT_THROW(DeterministicHybrid(md.policy, md.dynamics, md.reward, DeterministicHybridOptions{}), Error);
 }
 
 // With a terminal value every sample's return at every step also counts weight * V(s_H), its last predicted

@@ -277,6 +277,16 @@ register_simple(T, "values", "train.override_without_value", ["--env", "pendulum
 register_simple(T, "values", "train.list_value_malformed", ["--env", "pendulum", "sac.q_hidden=[32,"],
                 ["sac.q_hidden"])
 
+register_simple(T, "values", "train.reward_input_unknown",
+                ["--env", "pendulum", "--method", "hybrid-stochastic", "model.reward_input=next"],
+                ["model.reward_input"])
+register_simple(T, "values", "train.next_state_reward_with_td_target",
+                ["--env", "pendulum", "--method", "hybrid-stochastic", "model.reward_input=next_state"],
+                ["model.reward_gamma"])
+register_simple(T, "values", "train.next_state_reward_deterministic",
+                ["--env", "pendulum", "--method", "hybrid-deterministic", "model.reward_input=next_state",
+                 "model.reward_gamma=0"], ["model.reward_input"])
+
 # --- hlt_train: config files -------------------------------------------------------------------------------------
 register_simple(T, "YAML", "train.config_malformed",
                 lambda c: ["--config", write(tmp(c, "malformed.yaml"), "train: [1, 2\n")],

@@ -34,7 +34,7 @@ void clamp_rows(at::Tensor& rows, const at::Tensor& low, const at::Tensor& high)
 
 // The learned dynamics and reward models, as one batched pass (ModelForward). With `clamp_to_domain` every
 // predicted state is kept inside the dynamics model's domain (the per-dimension range of the states it was
-// trained on), once it has one.
+// trained on), once it has one. A reward model of the next state scores each step's (clamped) prediction.
 class LearnedRolloutModel : public RolloutModel {
  public:
   LearnedRolloutModel(DynamicsModel dynamics, RewardModel reward, bool clamp_to_domain);
@@ -47,6 +47,7 @@ class LearnedRolloutModel : public RolloutModel {
 
  private:
   DynamicsModel dynamics_;
+  RewardModel reward_;
   ModelForward forward_;
   bool clamp_to_domain_;
 };
