@@ -5,13 +5,17 @@
 // gives it, in seconds, without a training run around it.
 //
 //   hlt_model_fit --env ENV --train FILE.hltd [--train ...] --test FILE.hltd [--test ...]
-//                 [--updates N] [--report-every N] [--seed S] [--method M] [--config FILE] [key=value ...]
+//                 [--updates N] [--report-every N] [--horizons K,K...] [--seed S] [--method M]
+//                 [--config FILE] [key=value ...]
 //
 // The recordings come from `hlt_rollout --demos FILE` (any policy). Settings resolve as hlt_train's:
 // declared defaults, experiments/configs/<env>.yaml, the method's overlay (if --method), --config, then the
 // overrides.
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -104,6 +108,69 @@ double reward_error_ratio(RewardModelImpl& reward, const RewardSet& set) {
   return error / spread;
 }
 
+// Open-loop prediction k steps ahead, as a planner's rollout uses the model: from every step t of every
+// episode with t + k <= its length, the model rolls the recorded actions a_t .. a_{t+k-1} from o_t (each
+// prediction kept inside the model's domain if `clamp`). The error of the predicted o_{t+k} against that of
+// predicting o_t ("no change"), pooled over the components in `unit` (0 entries left out).
+double open_loop_ratio(DynamicsModelImpl& model, const Recordings& r, int k, const Eigen::VectorXd& unit,
+                       bool clamp) {
+  const int n = static_cast<int>(unit.size());
+  std::vector<float> start, target;
+  std::vector<std::vector<float>> actions(static_cast<size_t>(k));
+  for (const Demonstrations& d : r.files)
+    for (const std::vector<DemoStep>& episode : d.episodes())
+      for (size_t t = 0; t + static_cast<size_t>(k) <= episode.size(); ++t) {
+        start.insert(start.end(), episode[t].observation.data(), episode[t].observation.data() + n);
+        const Eigen::VectorXd& last = episode[t + static_cast<size_t>(k) - 1].next_observation;
+        target.insert(target.end(), last.data(), last.data() + n);
+        for (int j = 0; j < k; ++j) {
+          const Eigen::VectorXd& a = episode[t + static_cast<size_t>(j)].action;
+          actions[static_cast<size_t>(j)].insert(actions[static_cast<size_t>(j)].end(), a.data(),
+                                                 a.data() + a.size());
+        }
+      }
+  const int64_t b = static_cast<int64_t>(start.size()) / n;
+  if (b == 0) return std::numeric_limits<double>::quiet_NaN();
+  torch::InferenceMode guard;
+  const torch::Tensor s0 = torch::from_blob(start.data(), {b, n}, torch::kFloat32).clone();
+  const torch::Tensor goal = torch::from_blob(target.data(), {b, n}, torch::kFloat32).clone();
+  torch::Tensor s = s0;
+  for (int j = 0; j < k; ++j) {
+    std::vector<float>& a = actions[static_cast<size_t>(j)];
+    s = model.forward(s,
+                      torch::from_blob(a.data(), {b, static_cast<int64_t>(a.size()) / b}, torch::kFloat32));
+    if (clamp && model.has_domain()) s = torch::max(torch::min(s, model.domain_high()), model.domain_low());
+  }
+  const torch::Tensor inv_unit = torch::from_blob(const_cast<double*>(unit.data()), {n}, torch::kFloat64)
+                                     .to(torch::kFloat32)
+                                     .reciprocal()
+                                     .nan_to_num(0, 0, 0);
+  const double error = ((s - goal) * inv_unit).square().sum().item<double>();
+  const double change = ((goal - s0) * inv_unit).square().sum().item<double>();
+  return std::sqrt(error / change);
+}
+
+// The units of open_loop_ratio: the environment's declared ranges, else each component's spread over the
+// recordings (components spread less than 1e-6 of the widest one left out, as ModelCheck does).
+Eigen::VectorXd observation_units(const Env& env, const Recordings& r) {
+  if (const auto scale = env.observation_scale()) return scale->scale;
+  const int n = env.observation_dim();
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(n), sum2 = Eigen::VectorXd::Zero(n);
+  double count = 0;
+  for (const Demonstrations& d : r.files)
+    for (const std::vector<DemoStep>& episode : d.episodes())
+      for (const DemoStep& step : episode) {
+        sum += step.observation;
+        sum2 += step.observation.cwiseProduct(step.observation);
+        count += 1;
+      }
+  Eigen::VectorXd spread = (sum2 / count - (sum / count).cwiseAbs2()).cwiseMax(0.0).cwiseSqrt();
+  const double widest = spread.maxCoeff();
+  for (int i = 0; i < n; ++i)
+    if (spread[i] < 1e-6 * widest) spread[i] = 0;
+  return spread;
+}
+
 std::string score_text(const ModelScore& s) {
   return fmt::format("{:.3f} (better in {} of {})", s.error_ratio, s.better, s.error_rms.size());
 }
@@ -115,6 +182,7 @@ int run(int argc, char** argv) {
   std::string env_name, method, config_file;
   std::vector<std::string> train_files, test_files, overrides;
   int64_t updates = 5000, report_every = 500;
+  std::string horizons_text;
   uint64_t seed = 0;
   app.add_option("--env", env_name, "Environment the recordings were made on")->required();
   app.add_option("--train", train_files, "Recordings to fit to (.hltd; repeatable)")->required();
@@ -123,12 +191,31 @@ int run(int argc, char** argv) {
       ->check(CLI::Range(int64_t{1}, int64_t{100000000}));
   app.add_option("--report-every", report_every, "Score every this many updates")
       ->check(CLI::Range(int64_t{1}, int64_t{100000000}));
+  app.add_option("--horizons", horizons_text,
+                 "After fitting, also score open-loop predictions this many steps ahead on --test "
+                 "(comma-separated, e.g. 20,60)");
   app.add_option("--seed", seed, "Seed of the networks' initial weights and of the batches");
   app.add_option("--method", method, "Method whose config overlay to apply (experiments/configs/methods)");
   app.add_option("--config", config_file, "YAML config file applied after the defaults");
   app.add_option("overrides", overrides, "key=value config overrides, e.g. model.weight_decay=0.001");
   if (auto code = parse_command_line(app, argc, argv)) return *code;
   check_finite_flags(app);
+  std::vector<int> horizons;
+  if (!horizons_text.empty()) {
+    std::stringstream in(horizons_text);
+    for (std::string item; std::getline(in, item, ',');) {
+      size_t used = 0;
+      int k = 0;
+      try {
+        k = std::stoi(item, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      check(used > 0 && used == item.size() && k >= 1 && k <= 100000,
+            "--horizons: '{}' is not a comma-separated list of step counts in [1, 100000]", horizons_text);
+      horizons.push_back(k);
+    }
+  }
 
   Config config = make_train_config();
   config.set("env", env_name, "--env");
@@ -167,24 +254,37 @@ int run(int argc, char** argv) {
       config.get_double("model.lr"), config.get_bool("model.normalize_inputs"), train.transitions,
       test.transitions, frame_skip);
   const RewardSet train_rewards = reward_set(train, n, m), test_rewards = reward_set(test, n, m);
+  const bool plain_reward = config.get_double("model.reward_gamma") == 0.0;
   fmt::print(
       "updates | dynamics loss | error / 'no change' on --train | on --test | reward error / spread on "
-      "--train | on --test (model.reward_input {})\n",
-      config.get_string("model.reward_input"));
+      "--train | on --test (model.reward_input {}{})\n",
+      config.get_string("model.reward_input"), plain_reward ? "" : "; none with model.reward_gamma > 0");
   ModelScore on_test;
   for (int64_t u = 1; u <= updates; ++u) {
     const NamedLosses losses = learner->train(buffer.sample(batch_size));
     if (u % report_every == 0 || u == updates) {
       const ModelScore on_train = train_check.score(*models.dynamics, *env);
       on_test = test_check.score(*models.dynamics, *env);
-      fmt::print("{} | {:.4g} | {} | {} | {:.3f} | {:.3f}\n", u, losses.front().value, score_text(on_train),
-                 score_text(on_test), reward_error_ratio(*models.reward, train_rewards),
-                 reward_error_ratio(*models.reward, test_rewards));
+      // A reward model with a TD target (gamma > 0) fits a discounted sum, not the step's reward: no score.
+      const std::string reward_scores =
+          plain_reward ? fmt::format("{:.3f} | {:.3f}", reward_error_ratio(*models.reward, train_rewards),
+                                     reward_error_ratio(*models.reward, test_rewards))
+                       : "- | -";
+      fmt::print("{} | {:.4g} | {} | {} | {}\n", u, losses.front().value, score_text(on_train),
+                 score_text(on_test), reward_scores);
     }
   }
   // The last report's scores (u == updates always reports).
   fmt::print("on --test, per component:\n  rms error  {:.4g}\n  rms change {:.4g}\n",
              fmt::join(on_test.error_rms, " "), fmt::join(on_test.change_rms, " "));
+  if (!horizons.empty()) {
+    const Eigen::VectorXd unit = observation_units(*env, test);
+    const bool clamp = config.get_bool("planner.clamp_to_data");
+    fmt::print("open-loop error / 'no change' on --test, k steps ahead (recorded actions{}):\n",
+               clamp ? ", predictions kept in the model's domain" : "");
+    for (int k : horizons)
+      fmt::print("  k {}: {:.3f}\n", k, open_loop_ratio(*models.dynamics, test, k, unit, clamp));
+  }
   return 0;
 }
 

@@ -300,7 +300,8 @@ TEST(RolloutCli, ActsWithARunsPlannerOnItsModelsOrOnTheSimulator) {
       {" --policy zero --controller stochastic_hybrid", "--controller acts with a trained run's networks"},
       {policy + " --controller bogus", "unknown controller 'bogus'"},
       {policy + " --controller deterministic_hybrid --plan-on simulator", "only the stochastic planners"},
-      {policy + " --controller stochastic_hybrid --plan-on dream", "--plan-on: 'learned', 'simulator' or 'simulator-dynamics'"},
+      {policy + " --controller stochastic_hybrid --plan-on dream",
+       "--plan-on: 'learned', 'simulator' or 'simulator-dynamics'"},
       {policy + " planner.lambda=2", "overrides change the run's config for --controller"},
       {policy + " --controller stochastic_hybrid planner.lamda=2", "unknown config key 'planner.lamda'"},
   };
@@ -325,16 +326,40 @@ TEST(ModelFitCli, FitsAModelThatBeatsNoChangeAndRefusesMismatchedRecordings) {
                           "/train.hltd --test " + dir + "/test.hltd --updates 1500 --report-every 500";
   Result r = run(fit);
   ASSERT_EQ(r.code, 0) << r.output;
-  // The last report: "1500 | loss | train ratio (better in k of 3) | test ratio (better in k of 3)". The
-  // pendulum's step is smooth: a fitted model predicts unseen episodes far better than "no change".
-  const size_t at = r.output.find("\n1500 | ");
-  ASSERT_NE(at, std::string::npos) << r.output;
-  const std::string row = r.output.substr(at + 1, r.output.find('\n', at + 1) - at - 1);
-  const double test_ratio = std::stod(row.substr(row.rfind("| ") + 2));
-  EXPECT_LT(test_ratio, 0.3) << row;
+  // The last report: "1500 | loss | train ratio (better in k of 3) | test ratio (better in k of 3) |
+  // reward ratio on train | on test". The pendulum's step is smooth: a fitted model predicts unseen
+  // episodes far better than "no change".
+  auto last_row = [](const std::string& output) {
+    const size_t at = output.find("\n1500 | ");
+    if (at == std::string::npos) return std::vector<std::string>{};
+    std::vector<std::string> fields;
+    std::stringstream in(output.substr(at + 1, output.find('\n', at + 1) - at - 1));
+    for (std::string f; std::getline(in, f, '|');)
+      fields.push_back(f);
+    return fields;
+  };
+  std::vector<std::string> row = last_row(r.output);
+  ASSERT_EQ(row.size(), 6u) << r.output;
+  const double test_ratio = std::stod(row[3]);
+  EXPECT_LT(test_ratio, 0.3) << row[3];
+  // The default reward model has a TD target (gamma 0.95): it fits a discounted sum, so no reward score.
+  EXPECT_EQ(row[5], " -");
   EXPECT_NE(r.output.find("to 400 transitions, scoring on 100"), std::string::npos) << r.output;
   // The same seed gives the same fit.
   EXPECT_EQ(run(fit).output, r.output);
+  // A regressed reward model (gamma 0) is scored; the pendulum's reward is a smooth function of the state
+  // and action. Open-loop predictions one step ahead are the pooled one-step score (the domain clamp off);
+  // five steps ahead the fitted model still beats "no change".
+  r = run(fit + " --horizons 1,5 model.reward_gamma=0 planner.clamp_to_data=false");
+  ASSERT_EQ(r.code, 0) << r.output;
+  row = last_row(r.output);
+  ASSERT_EQ(row.size(), 6u) << r.output;
+  EXPECT_LT(std::stod(row[5]), 0.3) << r.output;
+  const size_t k1 = r.output.find("  k 1: "), k5 = r.output.find("  k 5: ");
+  ASSERT_NE(k1, std::string::npos) << r.output;
+  ASSERT_NE(k5, std::string::npos) << r.output;
+  EXPECT_NEAR(std::stod(r.output.substr(k1 + 7)), std::stod(row[3]), 0.0015) << r.output;
+  EXPECT_LT(std::stod(r.output.substr(k5 + 7)), 1.0) << r.output;
   // Refused (exit 2) with a message naming what is wrong: recordings of another environment, a missing file,
   // a bad override.
   const std::string tool = std::string(HLT_MODEL_FIT_BIN);

@@ -608,6 +608,8 @@ register_simple(F, "unknown names", "model_fit.unknown_env",
 register_simple(F, "values", "model_fit.updates_zero", fit_args(["--updates", 0]), ["--updates"])
 register_simple(F, "values", "model_fit.bad_override", fit_args(["model.hidden=0"]), ["model.hidden"])
 register_simple(F, "values", "model_fit.override_nan", fit_args(["model.lr=nan"]), ["model.lr"])
+register_simple(F, "values", "model_fit.horizons_malformed", fit_args(["--horizons", "20,,60"]), ["--horizons"])
+register_simple(F, "values", "model_fit.horizons_zero", fit_args(["--horizons", "0"]), ["--horizons"])
 register_simple(F, "files", "model_fit.train_missing", fit_args([], lambda c: tmp(c, "none.hltd")), ["none.hltd"])
 register_simple(F, "files", "model_fit.other_env",
                 lambda c: ["--env", "acrobot", "--train", pendulum_demos(c), "--test", pendulum_demos(c)],
