@@ -469,38 +469,52 @@ TEST(StochasticHybrid, WeightsAreFiniteNormalisedAndFollowTheFormula) {
 
 // With clamp_to_domain every predicted state is clamped into the dynamics model's domain before the next
 // step: the weights equal the formula's along clamped rollouts (and differ from unclamped ones).
+// One plan (H 6, K 30, lambda 0.5, the domain clamp on) of a stochastic hybrid on `md` from a random s0, with
+// the dynamics model's domain a box around s0 tighter than the rollouts, so that the clamp binds.
+struct ClampedPlan {
+  torch::Tensor s0, low, high, weights, samples, log_density;
+  double lambda = 0.5;
+};
+
+ClampedPlan plan_in_a_tight_domain(Models& md) {
+  ClampedPlan p;
+  StochasticHybridOptions o{6, 30, p.lambda, true, 0.0};
+  o.clamp_to_domain = true;
+  StochasticHybrid hybrid(std::make_shared<PolicySampler>(md.policy), md.dynamics, md.reward, o, md.policy);
+  p.s0 = torch::randn({3}, torch::kFloat64);
+  // Before the model has a domain nothing is clamped; a domain tighter than the rollouts then binds.
+  EXPECT_FALSE(md.dynamics->has_domain());
+  p.low = p.s0 - torch::tensor({0.05, 0.5, 0.0}, torch::kFloat64);
+  p.high = p.s0 + torch::tensor({0.05, 0.0, 0.5}, torch::kFloat64);
+  md.dynamics->set_domain(p.low, p.high);
+  hybrid.act(p.s0);
+  p.weights = hybrid.weights().clone();
+  p.samples = hybrid.samples().clone();
+  p.log_density = hybrid.log_density().clone();
+  return p;
+}
+
 TEST(StochasticHybrid, ClampToDomainKeepsThePredictedStatesInTheModelsDomain) {
   torch::manual_seed(4);
   Models md = random_models(3, 2, 23);
-  const double lambda = 0.5;
-  StochasticHybridOptions o{6, 30, lambda, true, 0.0};
-  o.clamp_to_domain = true;
-  StochasticHybrid hybrid(std::make_shared<PolicySampler>(md.policy), md.dynamics, md.reward, o, md.policy);
-  const auto s0 = torch::randn({3}, torch::kFloat64);
-  // Before the model has a domain nothing is clamped; a domain tighter than the rollouts then binds.
-  EXPECT_FALSE(md.dynamics->has_domain());
-  const auto low = s0 - torch::tensor({0.05, 0.5, 0.0}, torch::kFloat64);
-  const auto high = s0 + torch::tensor({0.05, 0.0, 0.5}, torch::kFloat64);
-  md.dynamics->set_domain(low, high);
-  hybrid.act(s0);
-  const auto w = hybrid.weights().clone();
+  const ClampedPlan p = plan_in_a_tight_domain(md);
   torch::NoGradGuard g;
   auto weights_along = [&](bool clamp) {
     int clamped = 0;
     auto clamp_step = [&](const torch::Tensor& s) {
-      const auto c = torch::max(torch::min(s, high), low);
+      const auto c = torch::max(torch::min(s, p.high), p.low);
       clamped += (c != s).sum().item<int>();
       return c;
     };
-    auto J = clamp ? reward_to_go(md, s0, hybrid.samples(), clamp_step).first
-                   : reward_to_go(md, s0, hybrid.samples()).first;
+    auto J =
+        clamp ? reward_to_go(md, p.s0, p.samples, clamp_step).first : reward_to_go(md, p.s0, p.samples).first;
     if (clamp) {
       EXPECT_GT(clamped, 30);  // the domain binds on many samples and steps
     }
-    return torch::softmax(J / lambda + hybrid.log_density(), 1);
+    return torch::softmax(J / p.lambda + p.log_density, 1);
   };
-  EXPECT_TRUE(torch::allclose(w, weights_along(true), 1e-9, 1e-12));
-  EXPECT_FALSE(torch::allclose(w, weights_along(false), 1e-6, 1e-9));
+  EXPECT_TRUE(torch::allclose(p.weights, weights_along(true), 1e-9, 1e-12));
+  EXPECT_FALSE(torch::allclose(p.weights, weights_along(false), 1e-6, 1e-9));
 }
 
 // A reward model of the next state (model.reward_input next_state) scores each step by the state it
@@ -513,30 +527,21 @@ TEST(StochasticHybrid, ARewardModelOfTheNextStateScoresTheStatesTheStepsReach) {
   ro.reads_next_state = true;
   md.reward = RewardModel(ro);
   md.reward->to(torch::kFloat64);
-  const double lambda = 0.5;
-  StochasticHybridOptions o{6, 30, lambda, true, 0.0};
-  o.clamp_to_domain = true;
-  StochasticHybrid hybrid(std::make_shared<PolicySampler>(md.policy), md.dynamics, md.reward, o, md.policy);
-  const auto s0 = torch::randn({3}, torch::kFloat64);
-  const auto low = s0 - torch::tensor({0.05, 0.5, 0.0}, torch::kFloat64);
-  const auto high = s0 + torch::tensor({0.05, 0.0, 0.5}, torch::kFloat64);
-  md.dynamics->set_domain(low, high);
-  hybrid.act(s0);
-  const auto w = hybrid.weights().clone();
+  const ClampedPlan p = plan_in_a_tight_domain(md);
   torch::NoGradGuard g;
-  auto clamp_step = [&](const torch::Tensor& s) { return torch::max(torch::min(s, high), low); };
-  const auto J = reward_to_go(md, s0, hybrid.samples(), clamp_step).first;
-  EXPECT_TRUE(torch::allclose(w, torch::softmax(J / lambda + hybrid.log_density(), 1), 1e-9, 1e-12));
+  auto clamp_step = [&](const torch::Tensor& s) { return torch::max(torch::min(s, p.high), p.low); };
+  const auto J = reward_to_go(md, p.s0, p.samples, clamp_step).first;
+  EXPECT_TRUE(torch::allclose(p.weights, torch::softmax(J / p.lambda + p.log_density, 1), 1e-9, 1e-12));
   // The same network read as r(s_t, a_t) weighs the samples otherwise.
   Models as_state = md;
   RewardModelOptions state_options = ro;
   state_options.reads_next_state = false;
   as_state.reward = RewardModel(state_options);
   as_state.reward->to(torch::kFloat64);
-  for (const auto& p : md.reward->named_parameters())
-    as_state.reward->named_parameters()[p.key()].copy_(p.value());
-  const auto J_state = reward_to_go(as_state, s0, hybrid.samples(), clamp_step).first;
-  EXPECT_FALSE(torch::allclose(w, torch::softmax(J_state / lambda + hybrid.log_density(), 1), 1e-6, 1e-9));
+  for (const auto& q : md.reward->named_parameters())
+    as_state.reward->named_parameters()[q.key()].copy_(q.value());
+  const auto J_state = reward_to_go(as_state, p.s0, p.samples, clamp_step).first;
+  EXPECT_FALSE(torch::allclose(p.weights, torch::softmax(J_state / p.lambda + p.log_density, 1), 1e-6, 1e-9));
   EXPECT_THROW(DeterministicHybrid(md.policy, md.dynamics, md.reward, DeterministicHybridOptions{}), Error);
 }
 
