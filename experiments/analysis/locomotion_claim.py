@@ -6,7 +6,8 @@ model-based baseline at every evaluation after the first 20 % of the budget.
   experiments/analysis/locomotion_claim.py TREE --budget hopper=80000 --budget half_cheetah=50000
 
 Budgets are in agent steps. The k-th eval/return_mean row of a run is its evaluation at k x eval.every agent
-steps (the log's step axis counts environment steps, which a run whose episodes end early reaches later)."""
+steps, the last one at the budget where that is not a multiple of eval.every (the log's step axis counts
+environment steps, which a run whose episodes end early reaches later)."""
 import argparse
 import csv
 import glob
@@ -24,13 +25,13 @@ def eval_every(config_path):
     return int(m.group(1))
 
 
-def curves(tree, env):
+def curves(tree, env, budget):
     out = {}
     for f in sorted(glob.glob(f'{tree}/{env}/*/seed*/scalars.csv')):
         method = f.split(os.sep)[-3]
         every = eval_every(f.replace('scalars.csv', 'config.yaml'))
         rows = [float(r['value']) for r in csv.DictReader(open(f)) if r['tag'] == 'eval/return_mean']
-        out.setdefault(method, []).append({k * every: value for k, value in enumerate(rows)})
+        out.setdefault(method, []).append({min(k * every, budget): value for k, value in enumerate(rows)})
     return out
 
 
@@ -46,7 +47,7 @@ def main():
         budget = int(steps)
         print(f'== {env}')
         means = {}
-        for m, runs in sorted(curves(a.tree, env).items()):
+        for m, runs in sorted(curves(a.tree, env, budget).items()):
             steps_ = sorted(set.intersection(*[set(v) for v in runs]))
             means[m] = {s: st.mean(v[s] for v in runs) for s in steps_}
             print(f'{m:22s} n={len(runs)} ' + ' '.join(f'{s // 1000}k:{means[m][s]:.0f}' for s in steps_))
