@@ -111,7 +111,8 @@ double reward_error_ratio(RewardModelImpl& reward, const RewardSet& set) {
 // Open-loop prediction k steps ahead, as a planner's rollout uses the model: from every step t of every
 // episode with t + k <= its length, the model rolls the recorded actions a_t .. a_{t+k-1} from o_t (each
 // prediction kept inside the model's domain if `clamp`). The error of the predicted o_{t+k} against that of
-// predicting o_t ("no change"), pooled over the components in `unit` (0 entries left out).
+// predicting o_t ("no change"), pooled over the components in `unit` (0 entries left out), as ModelScore's
+// error_ratio is.
 double open_loop_ratio(DynamicsModelImpl& model, const Recordings& r, int k, const Eigen::VectorXd& unit,
                        bool clamp) {
   const int n = static_cast<int>(unit.size());
@@ -148,27 +149,6 @@ double open_loop_ratio(DynamicsModelImpl& model, const Recordings& r, int k, con
   const double error = ((s - goal) * inv_unit).square().sum().item<double>();
   const double change = ((goal - s0) * inv_unit).square().sum().item<double>();
   return std::sqrt(error / change);
-}
-
-// The units of open_loop_ratio: the environment's declared ranges, else each component's spread over the
-// recordings (components spread less than 1e-6 of the widest one left out, as ModelCheck does).
-Eigen::VectorXd observation_units(const Env& env, const Recordings& r) {
-  if (const auto scale = env.observation_scale()) return scale->scale;
-  const int n = env.observation_dim();
-  Eigen::VectorXd sum = Eigen::VectorXd::Zero(n), sum2 = Eigen::VectorXd::Zero(n);
-  double count = 0;
-  for (const Demonstrations& d : r.files)
-    for (const std::vector<DemoStep>& episode : d.episodes())
-      for (const DemoStep& step : episode) {
-        sum += step.observation;
-        sum2 += step.observation.cwiseProduct(step.observation);
-        count += 1;
-      }
-  Eigen::VectorXd spread = (sum2 / count - (sum / count).cwiseAbs2()).cwiseMax(0.0).cwiseSqrt();
-  const double widest = spread.maxCoeff();
-  for (int i = 0; i < n; ++i)
-    if (spread[i] < 1e-6 * widest) spread[i] = 0;
-  return spread;
 }
 
 std::string score_text(const ModelScore& s) {
@@ -278,7 +258,8 @@ int run(int argc, char** argv) {
   fmt::print("on --test, per component:\n  rms error  {:.4g}\n  rms change {:.4g}\n",
              fmt::join(on_test.error_rms, " "), fmt::join(on_test.change_rms, " "));
   if (!horizons.empty()) {
-    const Eigen::VectorXd unit = observation_units(*env, test);
+    // In the one-step score's units (the declared ranges, else the spreads of the --test observations).
+    const Eigen::VectorXd& unit = on_test.unit;
     const bool clamp = config.get_bool("planner.clamp_to_data");
     fmt::print("open-loop error / 'no change' on --test, k steps ahead (recorded actions{}):\n",
                clamp ? ", predictions kept in the model's domain" : "");
