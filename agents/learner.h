@@ -36,6 +36,8 @@ class Learner {
   virtual const char* learner_name() const = 0;
   // One gradient step on `batch`; the same tags in the same order at every call.
   virtual NamedLosses train(const Batch& batch) = 0;
+  // The batches it takes: single transitions (1) or sequences of this many consecutive ones (Batch).
+  virtual int64_t sequence_steps() const { return 1; }
   // Starts its optimizer afresh (moments forgotten, parameters kept). The imitation loop calls it before an
   // iteration's updates where the config asks (imitation.restart_model_optimizer); no-op by default.
   virtual void restart_optimizer() {}

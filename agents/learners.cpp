@@ -134,6 +134,7 @@ std::unique_ptr<Learner> make_model_learner(LearnerContext& context) {
   mo.reward_gamma = c.get_double("model.reward_gamma");
   mo.reward_weight = c.get_double("model.reward_weight");
   mo.weight_decay = c.get_double("model.weight_decay");
+  mo.rollout_steps = c.get_int("model.rollout_steps");
   return std::make_unique<ModelLearner>(m.dynamics, m.reward, mo);
 }
 

@@ -31,18 +31,29 @@ ModelLearner::ModelLearner(DynamicsModel dynamics, RewardModel reward, const Mod
 }
 
 ModelLosses ModelLearner::update(const Batch& b) {
-  // Both backward passes are written by hand (no autograd graph): each writes its own parameters'
+  check(b.steps == options_.rollout_steps, "the model learner takes sequences of {} transitions, got {}",
+        options_.rollout_steps, b.steps);
+  ModelLosses losses;
+  const int64_t batch = b.states.size(0) / b.steps;
+  if (b.steps > 1) {
+    // The open-loop loss backpropagates through the K predictions: autograd, outside inference mode.
+    losses.dynamics =
+        dynamics_->rollout_loss_with_gradient(b.states.narrow(0, 0, batch), b.actions, b.next_states);
+  }
+  // The other backward passes are written by hand (no autograd graph): each writes its own parameters'
   // gradients, so the flat gradient buffer needs no zeroing.
   c10::InferenceMode guard;
-  ModelLosses losses;
-  losses.dynamics = dynamics_->loss_with_gradient(b.states, b.actions, b.next_states);
+  if (b.steps == 1) losses.dynamics = dynamics_->loss_with_gradient(b.states, b.actions, b.next_states);
   for (auto& w : decayed_)
     w.mutable_grad().add_(w, options_.weight_decay);
+  // The reward model trains on each sequence's first transition: the same uniform sample of transitions
+  // as with one step.
+  auto first = [&](const torch::Tensor& t) { return b.steps == 1 ? t : t.narrow(0, 0, batch); };
   // r(s', a) regresses on the reached state; with gamma 0 the TD target's next terms do not count.
   const torch::Tensor& reward_state = reward_->options().reads_next_state ? b.next_states : b.states;
-  losses.reward =
-      reward_->td_loss_with_gradient(reward_state, b.actions, b.rewards, b.next_states, b.next_actions,
-                                     b.dones, options_.reward_gamma, options_.reward_weight);
+  losses.reward = reward_->td_loss_with_gradient(first(reward_state), first(b.actions), first(b.rewards),
+                                                 first(b.next_states), first(b.next_actions), first(b.dones),
+                                                 options_.reward_gamma, options_.reward_weight);
   optimizer_->step();
   // The domain grows with the data the dynamics model is fitted to (for planner.clamp_to_data).
   dynamics_->extend_domain(b.states);

@@ -22,6 +22,11 @@ struct ModelLearnerOptions {
   // single 200-wide layer, fitted to a few thousand transitions, ends with a training error a quarter of its
   // held-out error and invents millimetres of motion for a block that stands still (docs/RESULTS.md).
   double weight_decay = 0;
+  // Steps K of the dynamics loss: 1, the paper's one-step likelihood; K > 1, the open-loop loss over
+  // sequences of K transitions (DynamicsModel::rollout_loss). Why: a planner rolls the model out H steps on
+  // its own predictions, and on the Ant the one-step fit's error grows from half a "no change" at 1 step to
+  // orders of magnitude past it at 40 (docs/RESULTS.md).
+  int64_t rollout_steps = 1;
 };
 
 struct ModelLosses {
@@ -32,10 +37,12 @@ struct ModelLosses {
 class ModelLearner : public Learner {
  public:
   ModelLearner(DynamicsModel dynamics, RewardModel reward, const ModelLearnerOptions& options);
+  // One Adam step on a batch of transitions, or of sequences (batch.steps == options.rollout_steps).
   ModelLosses update(const Batch& batch);
   // The Learner view of update: loss/dynamics, loss/reward.
   const char* learner_name() const override { return "model"; }
   NamedLosses train(const Batch& batch) override;
+  int64_t sequence_steps() const override { return options_.rollout_steps; }
   // Why: each demonstration of the imitation loop brings states the models have not seen; their
   // likelihood loss, with the variances fitted to the old data, makes a burst of large gradients, and
   // Adam's second moments then keep every later step small for thousands of updates (measured on block

@@ -99,6 +99,10 @@ Config make_train_config() {
                   1000.0)
       .add_double("model.weight_decay", 0.0,
                   "L2 penalty on the dynamics model's weight matrices (0: none, the paper's loss)", 0.0, 1.0)
+      .add_int("model.rollout_steps", 1,
+               "steps of the dynamics loss: 1, the one-step likelihood (the paper's); K > 1, the mean "
+               "likelihood of K open-loop predictions along sequences of K consecutive transitions",
+               1, 1000)
       .add_bool("model.normalize_inputs", false,
                 "the dynamics and reward models see the state as policy.normalize_inputs shows it to the "
                 "policy (the environment's declared observation ranges); the dynamics' residual stays raw")

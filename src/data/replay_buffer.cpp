@@ -74,33 +74,93 @@ void ReplayBuffer::add(const double* state, const double* action, double reward,
   size_ = std::min(size_ + 1, capacity_);
 }
 
-Batch ReplayBuffer::sample(int64_t batch_size) {
+Batch ReplayBuffer::sample(int64_t batch_size, int64_t steps) {
   check(size_ > 0, "cannot sample from an empty replay buffer");
   check(batch_size > 0, "batch size must be positive, got {}", batch_size);
-  std::vector<int64_t> idx(static_cast<size_t>(batch_size));
-  std::uniform_int_distribution<int64_t> pick(0, size_ - 1);
-  for (int64_t& i : idx)
-    i = pick(rng_);
+  check(steps > 0, "sequence length must be positive, got {}", steps);
+  std::vector<int64_t> rows(static_cast<size_t>(batch_size * steps));
+  if (steps == 1) {
+    std::uniform_int_distribution<int64_t> pick(0, size_ - 1);
+    for (int64_t& i : rows)
+      i = pick(rng_);
+    return gather(rows, 1);
+  }
+  const auto no_sequence = [&] {
+    return fmt::format(
+        "no {} consecutive transitions of one episode in a replay buffer of {} transitions "
+        "(model.rollout_steps is "
+        "longer than the stored episodes)",
+        steps, size_);
+  };
+  check(size_ >= steps, "{}", no_sequence());
+  const int64_t oldest = size_ == capacity_ ? next_ : 0;
+  // Rejection sampling: a start is drawn uniformly and kept if its sequence stays in one episode.
+  std::uniform_int_distribution<int64_t> pick(0, size_ - steps);
+  auto starts_sequence = [&](int64_t p) {
+    for (int64_t j = 0; j + 1 < steps; ++j)
+      if (!continues(p + j)) return false;
+    return true;
+  };
+  int64_t failures = 0;
+  for (int64_t b = 0; b < batch_size; ++b) {
+    int64_t p = pick(rng_);
+    while (!starts_sequence(p)) {
+      // Only checked after many misses, so a buffer where sequences are rare still samples them.
+      if (++failures == 10000) {
+        bool any = false;
+        for (int64_t q = 0; q + steps <= size_ && !any; ++q)
+          any = starts_sequence(q);
+        check(any, "{}", no_sequence());
+      }
+      p = pick(rng_);
+    }
+    for (int64_t k = 0; k < steps; ++k)
+      rows[static_cast<size_t>(k * batch_size + b)] = (oldest + p + k) % capacity_;
+  }
+  return gather(rows, steps);
+}
+
+bool ReplayBuffer::continues(int64_t p) const {
+  const int64_t oldest = size_ == capacity_ ? next_ : 0;
+  const int64_t row = (oldest + p) % capacity_, following = (oldest + p + 1) % capacity_;
+  if (dones_.data_ptr<float>()[row] != 0.0f) return false;
+  // A reset starts the next episode from a state that (almost surely) is not the last one reached.
+  const float* reached = next_states_.data_ptr<float>() + row * state_dim_;
+  const float* start = states_.data_ptr<float>() + following * state_dim_;
+  return std::equal(reached, reached + state_dim_, start);
+}
+
+Batch ReplayBuffer::gather(const std::vector<int64_t>& rows, int64_t steps) const {
   // Rows copied by hand: the same values as six index_select calls, without their dispatch (6 samples per
   // agent step).
-  auto gather = [&](const at::Tensor& from) {
+  const auto count = static_cast<int64_t>(rows.size());
+  auto gather_field = [&](const at::Tensor& from) {
     const int64_t width = from.size(1);
-    at::Tensor to = at::empty({batch_size, width}, from.options());
+    at::Tensor to = at::empty({count, width}, from.options());
     const float* src = from.data_ptr<float>();
     float* dst = to.data_ptr<float>();
-    for (int64_t i = 0; i < batch_size; ++i)
-      std::copy_n(src + idx[static_cast<size_t>(i)] * width, width, dst + i * width);
+    for (int64_t i = 0; i < count; ++i)
+      std::copy_n(src + rows[static_cast<size_t>(i)] * width, width, dst + i * width);
     return to;
   };
-  return {gather(states_),      gather(actions_),      gather(rewards_),
-          gather(next_states_), gather(next_actions_), gather(dones_)};
+  return {gather_field(states_),
+          gather_field(actions_),
+          gather_field(rewards_),
+          gather_field(next_states_),
+          gather_field(next_actions_),
+          gather_field(dones_),
+          steps};
 }
 
 Batch ReplayBuffer::all() const {
   torch::Tensor idx = (torch::arange(size_, torch::kInt64) + (size_ == capacity_ ? next_ : 0)) % capacity_;
-  return {states_.index_select(0, idx),       actions_.index_select(0, idx),
-          rewards_.index_select(0, idx),      next_states_.index_select(0, idx),
-          next_actions_.index_select(0, idx), dones_.index_select(0, idx)};
+  return {states_.index_select(0, idx),
+          actions_.index_select(0, idx),
+          rewards_.index_select(0, idx),
+          next_states_.index_select(0, idx),
+          next_actions_.index_select(0, idx),
+          dones_.index_select(0, idx),
+          1};
 }
 
 void ReplayBuffer::save(torch::serialize::OutputArchive& archive) const {

@@ -71,14 +71,53 @@ torch::Tensor DynamicsModelImpl::log_std() const {
   return log_std_param.clamp(options_.log_std_min, options_.log_std_max);
 }
 
-torch::Tensor DynamicsModelImpl::loss(const torch::Tensor& state, const torch::Tensor& action,
-                                      const torch::Tensor& next_state) {
-  const torch::Tensor mean = forward(state, action);
-  const torch::Tensor ls = log_std();
-  // log N(x; mu, sigma) = -(x - mu)^2 / (2 sigma^2) - log sigma - log(2 pi) / 2
-  const torch::Tensor z = (next_state - mean) * torch::exp(-ls);
+namespace {
+
+// -mean log N(x; mean, exp(ls)^2), with log N(x; mu, sigma) = -(x - mu)^2 / (2 sigma^2) - log sigma -
+// log(2 pi) / 2.
+torch::Tensor gaussian_nll(const torch::Tensor& x, const torch::Tensor& mean, const torch::Tensor& ls) {
+  const torch::Tensor z = (x - mean) * torch::exp(-ls);
   const torch::Tensor log_density = -0.5 * z.square() - ls - 0.5 * std::log(2.0 * M_PI);
   return -log_density.mean();
+}
+
+}  // namespace
+
+torch::Tensor DynamicsModelImpl::loss(const torch::Tensor& state, const torch::Tensor& action,
+                                      const torch::Tensor& next_state) {
+  return gaussian_nll(next_state, forward(state, action), log_std());
+}
+
+torch::Tensor DynamicsModelImpl::rollout_loss(const torch::Tensor& state, const torch::Tensor& actions,
+                                              const torch::Tensor& next_states) {
+  const int64_t batch = state.size(0);
+  check(state.dim() == 2 && batch > 0 && actions.dim() == 2 && next_states.dim() == 2 &&
+            actions.size(0) % batch == 0 && next_states.size(0) == actions.size(0),
+        "DynamicsModel::rollout_loss: needs states [B, n], actions [K B, m] and next states [K B, n], got "
+        "{}, {} and {}",
+        fmt::join(state.sizes(), "x"), fmt::join(actions.sizes(), "x"), fmt::join(next_states.sizes(), "x"));
+  const int64_t steps = actions.size(0) / batch;
+  const torch::Tensor ls = log_std();
+  torch::Tensor predicted = state, total;
+  for (int64_t k = 0; k < steps; ++k) {
+    predicted = forward(predicted, actions.narrow(0, k * batch, batch));
+    const torch::Tensor step = gaussian_nll(next_states.narrow(0, k * batch, batch), predicted, ls);
+    total = k == 0 ? step : total + step;
+  }
+  return total / static_cast<double>(steps);
+}
+
+double DynamicsModelImpl::rollout_loss_with_gradient(const torch::Tensor& state, const torch::Tensor& actions,
+                                                     const torch::Tensor& next_states, double scale) {
+  check(!c10::InferenceMode::is_enabled(),
+        "DynamicsModel::rollout_loss_with_gradient needs autograd: call it outside inference mode");
+  const torch::Tensor value = rollout_loss(state, actions, next_states);
+  std::vector<torch::Tensor> params = parameters();
+  const std::vector<torch::Tensor> grads = torch::autograd::grad({value}, params);
+  torch::NoGradGuard no_grad;
+  for (size_t i = 0; i < params.size(); ++i)
+    gradient_of(params[i]).copy_(grads[i]).mul_(scale);
+  return value.item<double>();
 }
 
 double DynamicsModelImpl::loss_with_gradient(const torch::Tensor& state, const torch::Tensor& action,

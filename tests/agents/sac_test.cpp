@@ -281,5 +281,61 @@ TEST(ModelLearner, WeightDecayAddsTheL2GradientToTheDynamicsWeightsOnly) {
     EXPECT_TRUE(torch::equal(p.value().grad(), ra[p.key()].grad())) << p.key();
 }
 
+// With model.rollout_steps K the learner takes sequences: the dynamics model gets the open-loop loss's
+// gradient, the reward model exactly the gradient it gets from the sequences' first transitions alone (so
+// its parameters after one Adam step are those of a one-step learner given those transitions), and a batch
+// of the wrong length is refused.
+TEST(ModelLearner, SequencesTrainTheDynamicsOpenLoopAndTheRewardOnTheirFirstSteps) {
+  const int n = 2, m = 1, K = 3;
+  auto make = [&](int64_t steps, DynamicsModel* dyn, RewardModel* rew) {
+    torch::manual_seed(8);
+    *dyn = DynamicsModel(DynamicsModelOptions{n, m, 16, Activation::kSin});
+    *rew = RewardModel(RewardModelOptions{n, m, 16});
+    ModelLearnerOptions o;
+    o.rollout_steps = steps;
+    return std::make_unique<ModelLearner>(*dyn, *rew, o);
+  };
+  DynamicsModel dyn_1(nullptr), dyn_k(nullptr), dyn_ref(nullptr);
+  RewardModel rew_1(nullptr), rew_k(nullptr), rew_ref(nullptr);
+  auto one = make(1, &dyn_1, &rew_1);
+  auto seq = make(K, &dyn_k, &rew_k);
+  make(K, &dyn_ref, &rew_ref);  // untrained copies, for the expected loss
+  EXPECT_EQ(one->sequence_steps(), 1);
+  EXPECT_EQ(seq->sequence_steps(), K);
+  // Two episodes of s' = 0.9 s + 0.1 a.
+  ReplayBuffer rb(40, n, m, 2);
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int e = 0; e < 2; ++e) {
+    double s[2] = {u(rng), u(rng)};
+    for (int t = 0; t < 20; ++t) {
+      const double a[1] = {u(rng)}, s2[2] = {0.9 * s[0] + 0.1 * a[0], 0.9 * s[1]};
+      rb.add(s, a, s[0], s2, a, false);
+      s[0] = s2[0];
+      s[1] = s2[1];
+    }
+  }
+  const Batch batch = rb.sample(16, K);
+  auto first = [&](const torch::Tensor& t) { return t.narrow(0, 0, 16).contiguous(); };
+  const Batch firsts{first(batch.states),
+                     first(batch.actions),
+                     first(batch.rewards),
+                     first(batch.next_states),
+                     first(batch.next_actions),
+                     first(batch.dones),
+                     1};
+  EXPECT_THROW(seq->update(firsts), Error);
+  EXPECT_THROW(one->update(batch), Error);
+  const double expected =
+      dyn_ref->rollout_loss(firsts.states, batch.actions, batch.next_states).item<double>();
+  const ModelLosses ls = seq->update(batch), l1 = one->update(firsts);
+  EXPECT_NEAR(ls.dynamics, expected, 1e-6 * std::abs(expected));
+  EXPECT_DOUBLE_EQ(ls.reward, l1.reward);
+  const auto r1 = rew_1->named_parameters();
+  for (const auto& p : rew_k->named_parameters())
+    EXPECT_TRUE(torch::equal(p.value(), r1[p.key()])) << p.key();
+  EXPECT_FALSE(torch::equal(dyn_k->fc1->weight, dyn_1->fc1->weight));
+}
+
 }  // namespace
 }  // namespace hlt

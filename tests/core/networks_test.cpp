@@ -409,6 +409,62 @@ TEST(HandWrittenGradients, DynamicsLossMatchesAutograd) {
   }
 }
 
+// The open-loop loss: one step is loss(); K steps are the mean of loss() along the model's own predictions;
+// data the model itself generated leaves only the log-std terms; the gradient it writes matches finite
+// differences through all K predictions (float64).
+TEST(DynamicsModel, RolloutLossIsTheMeanLikelihoodAlongTheModelsOwnPredictions) {
+  torch::manual_seed(6);
+  const int n = 3, m = 2, B = 5, K = 4;
+  DynamicsModel dyn(DynamicsModelOptions{n, m, 12, Activation::kSin, -1.0, 0.5});
+  dyn->to(torch::kFloat64);
+  {
+    torch::NoGradGuard ng;
+    dyn->log_std_param.copy_(torch::tensor({{-0.3, 0.2, 0.1}}, torch::kFloat64));
+  }
+  auto s0 = torch::randn({B, n}, torch::kFloat64);
+  auto actions = torch::randn({K * B, m}, torch::kFloat64);
+  auto next_states = torch::randn({K * B, n}, torch::kFloat64);
+  // One step.
+  EXPECT_NEAR(dyn->rollout_loss(s0, actions.narrow(0, 0, B), next_states.narrow(0, 0, B)).item<double>(),
+              dyn->loss(s0, actions.narrow(0, 0, B), next_states.narrow(0, 0, B)).item<double>(), 1e-14);
+  // K steps, composed by hand.
+  double expected = 0;
+  torch::Tensor predicted = s0, own = torch::empty({K * B, n}, torch::kFloat64);
+  {
+    torch::NoGradGuard ng;
+    for (int k = 0; k < K; ++k) {
+      const auto a = actions.narrow(0, k * B, B);
+      expected += dyn->loss(predicted, a, next_states.narrow(0, k * B, B)).item<double>() / K;
+      predicted = dyn->forward(predicted, a);
+      own.narrow(0, k * B, B).copy_(predicted);
+    }
+  }
+  EXPECT_NEAR(dyn->rollout_loss(s0, actions, next_states).item<double>(), expected, 1e-12);
+  // On its own rollout only mean(log sigma) + log(2 pi) / 2 remains.
+  EXPECT_NEAR(dyn->rollout_loss(s0, actions, own).item<double>(),
+              (-0.3 + 0.2 + 0.1) / 3 + 0.5 * std::log(2 * M_PI), 1e-12);
+  // The written gradient against finite differences of the loss, for every parameter.
+  EXPECT_NEAR(dyn->rollout_loss_with_gradient(s0, actions, next_states, 0.5), expected, 1e-12);
+  for (auto& named : dyn->named_parameters()) {
+    torch::Tensor param = named.value();
+    const auto fd = testing::finite_difference_gradient(
+        [&](const torch::Tensor& v) {
+          torch::NoGradGuard ng;
+          auto saved = param.clone();
+          param.copy_(v);
+          auto out = dyn->rollout_loss(s0, actions, next_states);
+          param.copy_(saved);
+          return out;
+        },
+        param);
+    EXPECT_LT(testing::relative_error(param.grad(), 0.5 * fd), 1e-6) << named.key();
+  }
+  // Shapes that do not split into K steps of B are refused; so is a call inside inference mode.
+  EXPECT_THROW(dyn->rollout_loss(s0, actions.narrow(0, 0, 7), next_states.narrow(0, 0, 7)), Error);
+  c10::InferenceMode guard;
+  EXPECT_THROW(dyn->rollout_loss_with_gradient(s0, actions, next_states), Error);
+}
+
 TEST(HandWrittenGradients, RewardTdLossMatchesAutograd) {
   for (double gamma : {0.0, 0.95}) {
     torch::manual_seed(6);

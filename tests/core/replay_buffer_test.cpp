@@ -4,6 +4,9 @@
 #include <torch/torch.h>
 
 #include <filesystem>
+#include <map>
+#include <set>
+#include <string>
 
 #include "hlt/core/checkpoint.h"
 #include "hlt/util/error.h"
@@ -102,6 +105,58 @@ TEST(ReplayBuffer, CapacityBeyondMemoryIsRefusedUpFront) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("lower train.replay_capacity"), std::string::npos) << e.what();
   }
+}
+
+// Episodes of lengths 5, 2 (ended by a terminal state that, contrived, equals the next episode's start) and
+// 6 in a ring of 12 that has wrapped: sequences of 3 start only where 3 transitions of one episode follow,
+// may run across the ring's end, come time-major, and all such starts are drawn.
+TEST(ReplayBuffer, SequencesStayInsideOneEpisode) {
+  ReplayBuffer rb(12, 2, 1, 9);
+  auto episode = [&](double start, int length, bool terminal) {
+    for (int t = 0; t < length; ++t) {
+      const double s[2] = {start + t, 1}, a[1] = {start + t}, s2[2] = {start + t + 1, 1}, a2[1] = {0};
+      rb.add(s, a, t, s2, a2, terminal && t == length - 1);
+    }
+  };
+  episode(0, 3, false);    // overwritten by the last episode's tail
+  episode(100, 5, false);  // insertion positions 0-4 once the ring holds 12
+  episode(200, 2, true);   // 5-6; its last next state (202) is not the next state (300), but:
+  episode(202, 1, false);  // 7: continues 200-201's states, yet follows a terminal transition
+  episode(300, 4, false);  // 8-11, rows 1-4 of the ring after wrapping
+  ASSERT_EQ(rb.size(), 12);
+  // Valid starts of 3: 100, 101, 102 and 300, 301.
+  const std::set<float> valid{100, 101, 102, 300, 301};
+  std::map<float, int> seen;
+  const int B = 4000;
+  const Batch b = rb.sample(B, 3);
+  ASSERT_EQ(b.steps, 3);
+  ASSERT_EQ(b.states.size(0), 3 * B);
+  auto s = b.states.accessor<float, 2>(), s2 = b.next_states.accessor<float, 2>();
+  auto act = b.actions.accessor<float, 2>();
+  for (int i = 0; i < B; ++i) {
+    ASSERT_TRUE(valid.count(s[i][0])) << s[i][0];
+    ++seen[s[i][0]];
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(s[k * B + i][0], s[i][0] + k);
+      EXPECT_EQ(act[k * B + i][0], s[i][0] + k);  // rows of one transition stay together
+      if (k < 2) {
+        EXPECT_EQ(s2[k * B + i][0], s[(k + 1) * B + i][0]);
+      }
+    }
+  }
+  ASSERT_EQ(seen.size(), valid.size());
+  for (const auto& [start, count] : seen)
+    EXPECT_NEAR(count, B / 5.0, 0.1 * B / 5.0) << start;
+  // One step is the plain sampler; more steps than any episode holds is an error naming the setting.
+  EXPECT_EQ(rb.sample(8, 1).steps, 1);
+  try {
+    rb.sample(2, 6);
+    FAIL() << "sequences of 6 do not exist";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("model.rollout_steps"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(rb.sample(2, 13), Error);
+  EXPECT_THROW(rb.sample(2, 0), Error);
 }
 
 }  // namespace

@@ -286,6 +286,10 @@ register_simple(T, "values", "train.next_state_reward_with_td_target",
 register_simple(T, "values", "train.next_state_reward_deterministic",
                 ["--env", "pendulum", "--method", "hybrid-deterministic", "model.reward_input=next_state",
                  "model.reward_gamma=0"], ["model.reward_input"])
+register_simple(T, "values", "train.rollout_steps_longer_than_episodes",
+                lambda c: ["--env", "pendulum", "--method", "mppi", "--steps", "300", "train.update_after=250",
+                           "model.rollout_steps=300", "--no-progress", "--out", tmp(c, "rollout")],
+                ["model.rollout_steps", "300 consecutive transitions"])
 
 # --- hlt_train: config files -------------------------------------------------------------------------------------
 register_simple(T, "YAML", "train.config_malformed",

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <random>
 #include <string>
+#include <vector>
 
 #include <ATen/core/Tensor.h>
 
@@ -16,8 +17,12 @@ class InputArchive;
 
 namespace hlt {
 
+// Transitions as rows: [R, n], [R, m], [R, 1], ... With steps > 1 the rows are `steps` consecutive
+// transitions of each of B = R / steps sequences, time-major: row k * B + b is step k of sequence b, so
+// rows [k * B, (k + 1) * B) are every sequence's k-th transition.
 struct Batch {
-  at::Tensor states, actions, rewards, next_states, next_actions, dones;  // [B, n], [B, m], [B, 1], ...
+  at::Tensor states, actions, rewards, next_states, next_actions, dones;
+  int64_t steps = 1;
 };
 
 class ReplayBuffer {
@@ -27,8 +32,11 @@ class ReplayBuffer {
   // Appends one transition (overwriting the oldest when full). Pointers hold state_dim / action_dim values.
   void add(const double* state, const double* action, double reward, const double* next_state,
            const double* next_action, bool done);
-  // `batch_size` transitions drawn uniformly with replacement.
-  Batch sample(int64_t batch_size);
+  // `batch_size` transitions drawn uniformly with replacement. With steps > 1, `batch_size` sequences of
+  // `steps` consecutive transitions of one episode (each transition's next state is the following one's
+  // state and none but the last is terminal), their first transitions drawn uniformly among those that
+  // start such a sequence. Throws hlt::Error if none does (every stored episode is shorter than `steps`).
+  Batch sample(int64_t batch_size, int64_t steps = 1);
   // Rows [0, size()) in insertion order (oldest first): for behaviour cloning and tests.
   Batch all() const;
 
@@ -47,6 +55,10 @@ class ReplayBuffer {
   // One [capacity, width] float tensor per field: width n, m, 1, n, m, 1.
   at::Tensor states_, actions_, rewards_, next_states_, next_actions_, dones_;
   std::mt19937_64 rng_;
+
+  Batch gather(const std::vector<int64_t>& rows, int64_t steps) const;
+  // Whether the transition at insertion position p (0 oldest) continues into the one at p + 1.
+  bool continues(int64_t p) const;
 };
 
 }  // namespace hlt

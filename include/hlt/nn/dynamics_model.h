@@ -47,6 +47,16 @@ class DynamicsModelImpl : public torch::nn::Module {
   // .grad() tensors by a hand-written backward pass (tested against autograd) instead of a graph.
   double loss_with_gradient(const torch::Tensor& state, const torch::Tensor& action,
                             const torch::Tensor& next_state, double scale = 1.0);
+  // The open-loop (multi-step) loss: from `state` [B, n] the model predicts K = actions.size(0) / B steps
+  // ahead on its own predictions, s^_{k+1} = forward(s^_k, a_k), and the loss is the mean over k of the
+  // Gaussian NLL of the reached state next_states_k under s^_{k+1}. `actions` [K B, m] and `next_states`
+  // [K B, n] are time-major (Batch's layout with steps K). With K = 1 it equals loss().
+  torch::Tensor rollout_loss(const torch::Tensor& state, const torch::Tensor& actions,
+                             const torch::Tensor& next_states);
+  // rollout_loss's value with `scale` times its gradient written (not accumulated) into the parameters'
+  // .grad() tensors (by autograd through the K steps; call outside inference mode).
+  double rollout_loss_with_gradient(const torch::Tensor& state, const torch::Tensor& actions,
+                                    const torch::Tensor& next_states, double scale = 1.0);
 
   const DynamicsModelOptions& options() const { return options_; }
   const InputNormaliser& normaliser() const { return normaliser_; }
