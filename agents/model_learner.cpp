@@ -46,8 +46,8 @@ ModelLosses ModelLearner::update(const Batch& b) {
   if (b.steps == 1) losses.dynamics = dynamics_->loss_with_gradient(b.states, b.actions, b.next_states);
   for (auto& w : decayed_)
     w.mutable_grad().add_(w, options_.weight_decay);
-  // The reward model trains on each sequence's first transition: the same uniform sample of transitions
-  // as with one step.
+  // The reward model trains on each sequence's first transition, at the one-step cost: a uniform sample
+  // of the transitions that start a sequence (all but the last K - 1 of each episode).
   auto first = [&](const torch::Tensor& t) { return b.steps == 1 ? t : t.narrow(0, 0, batch); };
   // r(s', a) regresses on the reached state; with gamma 0 the TD target's next terms do not count.
   const torch::Tensor& reward_state = reward_->options().reads_next_state ? b.next_states : b.states;
