@@ -220,8 +220,34 @@ void ModelUpdate(benchmark::State& st) {
     benchmark::DoNotOptimize(learner.update(rb.sample(128)));
 }
 
+// One model update on 128 sequences of K transitions (model.rollout_steps K): the dynamics model's open-loop
+// loss by autograd through K steps, the reward model on the 128 first transitions. Its unavoidable work is
+// about K times the dynamics part of ModelUpdate's.
+void ModelUpdateSequences(benchmark::State& st) {
+  set_torch_threads(1);
+  torch::manual_seed(0);
+  const int64_t n = st.range(0), m = st.range(1);
+  const Activation act = n <= 6 ? Activation::kSin : Activation::kRelu;
+  ModelLearnerOptions options;
+  options.rollout_steps = st.range(2);
+  ModelLearner learner(DynamicsModel(DynamicsModelOptions{n, m, 200, act}),
+                       RewardModel(RewardModelOptions{n, m, 200}), options);
+  ReplayBuffer rb(1000, n, m, 0);
+  std::vector<double> s(n, 0.1), a(m, 0.2);
+  for (int i = 0; i < 1000; ++i)  // one episode: every next state is the following state
+    rb.add(s.data(), a.data(), 1.0, s.data(), a.data(), false);
+  for (auto _ : st)
+    benchmark::DoNotOptimize(learner.update(rb.sample(128, options.rollout_steps)));
+}
+
 BENCHMARK(SacUpdate)->ArgNames({"n", "m"})->Args({5, 1})->Args({26, 6})->Unit(benchmark::kMillisecond);
 BENCHMARK(ModelUpdate)->ArgNames({"n", "m"})->Args({5, 1})->Args({26, 6})->Unit(benchmark::kMillisecond);
+BENCHMARK(ModelUpdateSequences)
+    ->ArgNames({"n", "m", "K"})
+    ->Args({26, 6, 1})
+    ->Args({26, 6, 5})
+    ->Args({26, 6, 20})
+    ->Unit(benchmark::kMillisecond);
 
 // The matrix products of one agent step at batch 128 (the paper's sizes; critics 2 x 256, policy 128, models
 // 200 and 200 x 200): the stochastic planner's call (as StochasticHybridFloor, K = 20, H = 5), one SAC update
