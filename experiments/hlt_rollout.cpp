@@ -7,6 +7,7 @@
 //               [--frame-skip K] [--csv traj.csv] [--video out.mp4] [--strip out.png] [--demos out.hltd]
 //               [--perception] [--models CHECKPOINT --predictions pred.csv]
 //               [--controller stochastic_hybrid [--plan-on learned|simulator|simulator-dynamics]
+//               [--plan-check N]
 //               [key=value ...]]
 //               (with checkpoint:PATH)
 #include <algorithm>
@@ -31,6 +32,7 @@
 #include "agents/controller_policy.h"
 #include "agents/demonstrations.h"
 #include "agents/model_check.h"
+#include "agents/plan_check.h"
 #include "agents/policy_spec.h"
 #include "agents/saved_policy.h"
 #include "agents/simulator_model.h"
@@ -190,6 +192,29 @@ struct Options {
   // The stochastic planners' model with --controller: the run's learned models or the simulator.
   std::string plan_on = "learned";
   std::vector<std::string> overrides;  // key=value changes to the run's config with --controller
+  int plan_check = 0;  // replay the planner's samples on the simulator at every N-th step (0: never)
+};
+
+// The acting policy, and after every `every`-th of its planning calls (before the environment steps) the
+// planner's samples compared with their replay on the simulator.
+class PlanCheckingPolicy : public PolicySource {
+ public:
+  PlanCheckingPolicy(std::unique_ptr<PolicySource> inner, const StochasticHybrid& planner, PlanCheck& check,
+                     int every)
+      : inner_(std::move(inner)), planner_(planner), check_(check), every_(every) {}
+  std::string describe() const override { return inner_->describe(); }
+  Eigen::VectorXd act(const Eigen::VectorXd& observation) override {
+    Eigen::VectorXd action = inner_->act(observation);
+    if (calls_++ % every_ == 0) check_.add(planner_);
+    return action;
+  }
+
+ private:
+  std::unique_ptr<PolicySource> inner_;
+  const StochasticHybrid& planner_;
+  PlanCheck& check_;
+  int every_;
+  int64_t calls_ = 0;
 };
 
 // The learned models' one-step predictions next to what the environment did: per step the observation's
@@ -272,7 +297,12 @@ int run(Options o, bool frame_skip_given) {
         "--plan-on {}: only the stochastic planners (--controller stochastic_hybrid or mppi) plan on the "
         "simulator",
         o.plan_on);
+  check(o.plan_check >= 0, "--plan-check must be >= 0, got {}", o.plan_check);
+  check(o.plan_check == 0 || o.controller == "stochastic_hybrid" || o.controller == "mppi",
+        "--plan-check compares a stochastic planner's samples with the simulator: give --controller "
+        "stochastic_hybrid or mppi");
   std::unique_ptr<Controller> controller;
+  std::optional<PlanCheck> plan_check;
   if (!o.controller.empty()) {
     std::shared_ptr<RolloutModel> plan_on;
     const std::string path = o.policy.substr(std::string(kCheckpointPrefix).size());
@@ -285,6 +315,13 @@ int run(Options o, bool frame_skip_given) {
     // The planner's samples come from LibTorch's generator: its own stream, as the policy's.
     torch::manual_seed(derive_seed(o.seed, 2));
     policy = std::make_unique<ControllerPolicy>(*controller);
+    if (o.plan_check > 0) {
+      const auto* planner = dynamic_cast<const StochasticHybrid*>(controller.get());
+      check(planner != nullptr, "--plan-check: the run's {} controller is not a stochastic planner",
+            o.controller);
+      plan_check.emplace(*env, load_saved_models(path).reward);
+      policy = std::make_unique<PlanCheckingPolicy>(std::move(policy), *planner, *plan_check, o.plan_check);
+    }
     const char* model = o.plan_on == "simulator" ? "a copy of the simulator (a perfect model)"
                         : o.plan_on == "simulator-dynamics"
                             ? "a copy of the simulator scored by its learned reward"
@@ -370,6 +407,7 @@ int run(Options o, bool frame_skip_given) {
   }
   if (perception) perception->print();
   if (predictions) predictions->print_check(*env);
+  if (plan_check) fmt::print("{}", plan_check->summary());
 
   if (demos) {
     demos->save(o.demos);
@@ -453,6 +491,11 @@ int run_tool(int argc, char** argv) {
                  "copy of the 'simulator' (a perfect model and the true reward: what the planner can do "
                  "with better models), or on 'simulator-dynamics' (the simulator's transitions scored by "
                  "the run's learned reward model)")
+      ->capture_default_str();
+  app.add_option("--plan-check", o.plan_check,
+                 "With --controller stochastic_hybrid or mppi: at every N-th step replay the planner's "
+                 "samples on a copy of the simulator and report how well its models ranked them (rank "
+                 "correlation of predicted and simulated returns, where its choice lands among them)")
       ->capture_default_str();
   app.add_option("overrides", o.overrides,
                  "With --controller: key=value changes to the run's config before the controller is built, "

@@ -288,14 +288,26 @@ TEST(RolloutCli, ActsWithARunsPlannerOnItsModelsOrOnTheSimulator) {
     // The same seed repeats itself.
     EXPECT_EQ(run(rollout + policy + " --controller stochastic_hybrid --plan-on " + model).output, r.output);
   }
+  // --plan-check replays the planner's samples on the simulator: every 5th of 20 steps is 4 calls; on the
+  // simulator itself the models rank the samples exactly as the replay does.
+  r = run(rollout + policy + " --controller stochastic_hybrid --plan-check 5");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("plan check over 4 planning calls"), std::string::npos) << r.output;
+  r = run(rollout + policy + " --controller stochastic_hybrid --plan-on simulator --plan-check 5");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(
+      r.output.find("predicted return vs simulated:                     mean 1.000 median 1.000 over 4"),
+      std::string::npos)
+      << r.output;
   // key=value overrides change the run's config before the planner is built: three samples plan otherwise.
   const std::string three =
       run(rollout + policy + " --controller stochastic_hybrid planner.samples=3").output;
   EXPECT_NE(three.find("over 2 episodes"), std::string::npos) << three;
   EXPECT_NE(three, run(rollout + policy + " --controller stochastic_hybrid").output);
   // Refused: a controller without a trained run, an unknown controller, a planner the simulator cannot
-  // replace, an unknown model, overrides without a controller or of unknown keys, and a controller whose
-  // networks the run has not (SAC has no models).
+  // replace, an unknown model, overrides without a controller or of unknown keys, a plan check without a
+  // stochastic planner or with a negative interval, and a controller whose networks the run has not (SAC has
+  // no models).
   const std::pair<std::string, std::string> refused[] = {
       {" --policy zero --controller stochastic_hybrid", "--controller acts with a trained run's networks"},
       {policy + " --controller bogus", "unknown controller 'bogus'"},
@@ -303,6 +315,10 @@ TEST(RolloutCli, ActsWithARunsPlannerOnItsModelsOrOnTheSimulator) {
       {policy + " --controller stochastic_hybrid --plan-on dream",
        "--plan-on: 'learned', 'simulator' or 'simulator-dynamics'"},
       {policy + " planner.lambda=2", "overrides change the run's config for --controller"},
+      {policy + " --plan-check 5", "--plan-check compares a stochastic planner's samples"},
+      {policy + " --controller policy --plan-check 5",
+       "--plan-check compares a stochastic planner's samples"},
+      {policy + " --controller stochastic_hybrid --plan-check -1", "--plan-check must be >= 0"},
       {policy + " --controller stochastic_hybrid planner.lamda=2", "unknown config key 'planner.lamda'"},
   };
   for (const auto& [args, word] : refused) {

@@ -141,6 +141,8 @@ class StochasticHybrid : public Controller {
   const at::Tensor& weights() const { return weights_; }
   const at::Tensor& samples() const { return samples_; }
   const at::Tensor& log_density() const { return log_density_; }
+  // The last call's predicted rewards [H, K] of every sample's steps.
+  const at::Tensor& rewards() const { return rewards_; }
   // The last call's terminal values V(s_H) [K] (undefined without terminal_value_weight).
   const at::Tensor& terminal_values() const { return terminal_values_; }
 
