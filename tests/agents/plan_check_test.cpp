@@ -15,6 +15,7 @@
 #include "agents/train_config.h"
 #include "envs/registry.h"
 #include "hlt/util/error.h"
+#include "support/planner_setup.h"
 
 namespace hlt {
 namespace {
@@ -54,20 +55,13 @@ TEST(PlanCheck, APerfectModelRanksItsSamplesAsTheReplayAndAReversedOneInReverse)
   const Eigen::VectorXd o = env->reset(3);
   for (const bool negated : {false, true}) {
     torch::manual_seed(0);
-    Config config = make_train_config();
-    config.set("planner.horizon", "10");
-    config.set("planner.samples", "20");
-    config.set("planner.lambda", "1.0");
-    LearnedModels models;
-    GaussianPolicyOptions po;
-    po.state_dim = env->observation_dim();
-    po.action_dim = env->action_dim();
-    po.hidden = {16};
-    models.policy = GaussianPolicy(po);
+    const Config config = testing::planner_config(10, 20, 1.0);
+    std::shared_ptr<RolloutModel> model;
     if (negated)
-      models.plan_on = std::make_shared<NegatedSimulator>(*env);
+      model = std::make_shared<NegatedSimulator>(*env);
     else
-      models.plan_on = std::make_shared<SimulatorRolloutModel>(*env, at::kFloat);
+      model = std::make_shared<SimulatorRolloutModel>(*env, at::kFloat);
+    const LearnedModels models = testing::untrained_policy_planning_on(*env, model);
     std::unique_ptr<Controller> controller = make_controller("stochastic_hybrid", models, config, true);
     const auto* planner = dynamic_cast<const StochasticHybrid*>(controller.get());
     ASSERT_NE(planner, nullptr);

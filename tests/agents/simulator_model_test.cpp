@@ -15,6 +15,7 @@
 #include "envs/registry.h"
 #include "envs/rollout.h"
 #include "hlt/util/error.h"
+#include "support/planner_setup.h"
 
 namespace hlt {
 namespace {
@@ -127,18 +128,10 @@ TEST(SimulatorRolloutModel, ALearnedRewardModelScoresTheSimulatedTransitions) {
 TEST(SimulatorRolloutModel, TheStochasticHybridPlanningOnItSwingsThePendulumUp) {
   // An untrained policy and no learned models: the planner's samples ranked by the simulator itself.
   torch::manual_seed(0);
-  Config config = make_train_config();
-  config.set("planner.horizon", "20");
-  config.set("planner.samples", "20");
-  config.set("planner.lambda", "1.0");
+  const Config config = testing::planner_config(20, 20, 1.0);
   auto env = make_env("pendulum");
-  LearnedModels models;
-  GaussianPolicyOptions po;
-  po.state_dim = env->observation_dim();
-  po.action_dim = env->action_dim();
-  po.hidden = {16};
-  models.policy = GaussianPolicy(po);
-  models.plan_on = std::make_shared<SimulatorRolloutModel>(*env, at::kFloat);
+  const LearnedModels models =
+      testing::untrained_policy_planning_on(*env, std::make_shared<SimulatorRolloutModel>(*env, at::kFloat));
   std::unique_ptr<Controller> hybrid = make_controller("stochastic_hybrid", models, config, true);
   std::unique_ptr<Controller> policy = make_controller("policy", models, config, true);
   ControllerPolicy planned(*hybrid), alone(*policy);
