@@ -72,6 +72,11 @@ Config make_train_config() {
                 "imitation methods: behaviour cloning learns from a noisy demonstrator's noiseless action "
                 "where it has one (the scripted experts; DART), not from the executed action; the models "
                 "always learn from the executed one")
+      .add_double("imitation.demo_noise", 0.0,
+                  "imitation methods: standard deviation of Gaussian noise added to the demonstrator's "
+                  "executed actions (clipped to [-1, 1]; with imitation.intended_labels behaviour cloning "
+                  "learns the noiseless ones): the models then see other actions than the expert's",
+                  0.0, 10.0)
       .add_bool("imitation.expert_episode", true,
                 "imitation methods: also run the demonstrator from each test episode's start and log "
                 "imitation/expert_return (the expert's level in the same episode)")

@@ -62,6 +62,7 @@ enum Stream : uint64_t {
   kDemonstrationEpisode = 65,
   kDemonstrator = 66,
   kImitationEval = 67,
+  kDemonstratorNoise = 68,
 };
 
 // The header of config.yaml: what the run's numbers depend on besides its settings. The same seed gives
@@ -540,8 +541,11 @@ struct Trainer::Impl {
     const int test_steps = static_cast<int>(config.get_int("imitation.test_steps"));
     // A fresh demonstrator per iteration, seeded by the iteration, so a resumed run draws what an
     // uninterrupted one does (only the random policy draws anything).
-    auto demonstrator =
+    std::unique_ptr<PolicySource> demonstrator =
         make_fixed_policy(expert_spec, *env, derive_seed(seed, kDemonstrator) ^ i, "imitation.expert");
+    if (const double noise = config.get_double("imitation.demo_noise"); noise > 0)
+      demonstrator = std::make_unique<NoisyPolicy>(std::move(demonstrator), noise,
+                                                   derive_seed(seed, kDemonstratorNoise) ^ i);
     std::vector<Recorded> episode;
     const EpisodeStats demo = record_episode(*demonstrator, derive_seed(seed, kDemonstrationEpisode) ^ i,
                                              demo_steps, false, episode);

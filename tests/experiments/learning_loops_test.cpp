@@ -199,6 +199,34 @@ TEST(LearningLoops, RestartingTheModelOptimizerChangesOnlyLaterIterationsAndResu
             test::comparable_rows(restarted + "/scalars.csv"));
 }
 
+// imitation.demo_noise: the demonstrator's executed actions vary (every demonstration's return changes), the
+// noise is seeded per iteration (a run stopped after two iterations and resumed repeats the straight one),
+// and with intended labels behaviour cloning learns from the noiseless actions (its loss differs from that
+// of the executed ones).
+TEST(LearningLoops, DemonstratorNoiseChangesTheDemonstrationsAndResumesExactly) {
+  const std::string expert = write_pendulum_expert(fresh_dir("noise_expert"));
+  const std::string plain = fresh_dir("noise_off"), noisy = fresh_dir("noise_on"),
+                    resumed = fresh_dir("noise_resumed"), intended = fresh_dir("noise_intended");
+  const std::string args = imitation_args("bc", expert);
+  ASSERT_EQ(run(kTrain + args + " --out " + plain).code, 0);
+  ASSERT_EQ(run(kTrain + args + " imitation.demo_noise=0.3 --out " + noisy).code, 0);
+  const auto off = by_tag(plain + "/scalars.csv"), on = by_tag(noisy + "/scalars.csv");
+  ASSERT_EQ(on.at("imitation/demonstration_return").size(), 3u);
+  for (size_t i = 0; i < 3; ++i)
+    EXPECT_NE(on.at("imitation/demonstration_return")[i], off.at("imitation/demonstration_return")[i]) << i;
+  Result r = run(kTrain + args + " imitation.demo_noise=0.3 --steps 2 --out " + resumed);
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run(kTrain + " --resume " + resumed + " --steps 3 --no-progress");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(test::comparable_rows(resumed + "/scalars.csv"), test::comparable_rows(noisy + "/scalars.csv"));
+  ASSERT_EQ(
+      run(kTrain + args + " imitation.demo_noise=0.3 imitation.intended_labels=true --out " + intended).code,
+      0);
+  const auto labelled = by_tag(intended + "/scalars.csv");
+  EXPECT_EQ(labelled.at("imitation/demonstration_return"), on.at("imitation/demonstration_return"));
+  EXPECT_NE(labelled.at("loss/bc"), on.at("loss/bc"));
+}
+
 TEST(LearningLoops, ImitationEvalVariantsChangeNoOtherNumber) {
   const std::string expert = write_pendulum_expert(fresh_dir("imitation_expert3"));
   const std::string args =

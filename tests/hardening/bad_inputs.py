@@ -286,6 +286,9 @@ register_simple(T, "values", "train.next_state_reward_with_td_target",
 register_simple(T, "values", "train.next_state_reward_deterministic",
                 ["--env", "pendulum", "--method", "hybrid-deterministic", "model.reward_input=next_state",
                  "model.reward_gamma=0"], ["model.reward_input"])
+register_simple(T, "values", "train.demo_noise_negative",
+                ["--env", "ant", "--method", "bc", "imitation.expert=constant:0", "imitation.demo_noise=-0.1"],
+                ["imitation.demo_noise"])
 register_simple(T, "values", "train.rollout_steps_longer_than_episodes",
                 lambda c: ["--env", "pendulum", "--method", "mppi", "--steps", "300", "train.update_after=250",
                            "model.rollout_steps=300", "--no-progress", "--out", tmp(c, "rollout")],
