@@ -8,7 +8,6 @@
 #include <fmt/format.h>
 #include <torch/torch.h>
 
-#include "agents/simulator_model.h"
 #include "hlt/util/error.h"
 
 namespace hlt {
@@ -76,7 +75,11 @@ double spearman(const std::vector<double>& x, const std::vector<double>& y) {
   return sxx > 0 && syy > 0 ? sxy / std::sqrt(sxx * syy) : kNaN;
 }
 
-PlanCheck::PlanCheck(const Env& env, RewardModel reward) : env_(env), reward_(std::move(reward)) {}
+PlanCheck::PlanCheck(const Env& env, RewardModel reward)
+    : env_(env),
+      truth_(env, at::kDouble),
+      scored_(reward.is_empty() ? nullptr
+                                : std::make_unique<SimulatorRolloutModel>(env, at::kDouble, reward)) {}
 
 PlanCheckCall PlanCheck::add(const StochasticHybrid& planner) {
   torch::InferenceMode guard;
@@ -90,13 +93,8 @@ PlanCheckCall PlanCheck::add(const StochasticHybrid& planner) {
   const at::Tensor w0 = planner.weights()[0].to(at::kDouble).contiguous();
   const at::Tensor finite_actions = torch::isfinite(samples).all(2).all(0).contiguous();
 
-  SimulatorRolloutModel truth(env_, at::kDouble);
-  const std::vector<double> simulated = replay(truth, samples);
-  std::vector<double> scored;
-  if (!reward_.is_empty()) {
-    SimulatorRolloutModel learned(env_, at::kDouble, reward_);
-    scored = replay(learned, samples);
-  }
+  const std::vector<double> simulated = replay(truth_, samples);
+  const std::vector<double> scored = scored_ ? replay(*scored_, samples) : std::vector<double>{};
   // The samples whose actions and predicted return are finite; the others carry no weight in the planner.
   std::vector<double> p, s, l, w;
   for (int64_t k = 0; k < K; ++k) {

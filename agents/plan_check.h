@@ -7,11 +7,13 @@
 // reads the simulator's state, which no learner sees: a measuring instrument (hlt_rollout --plan-check).
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <ATen/core/Tensor.h>
 
+#include "agents/simulator_model.h"
 #include "envs/env.h"
 #include "hlt/control/stochastic_hybrid.h"
 #include "hlt/nn/reward_model.h"
@@ -47,7 +49,10 @@ class PlanCheck {
 
  private:
   const Env& env_;
-  RewardModel reward_;
+  // Built once: each call's replay starts from the environment's current state
+  // (SimulatorRolloutModel::begin).
+  SimulatorRolloutModel truth_;                    // the true reward
+  std::unique_ptr<SimulatorRolloutModel> scored_;  // the learned reward (null without one)
   std::vector<PlanCheckCall> calls_;
 };
 
