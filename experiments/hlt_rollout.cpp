@@ -306,10 +306,13 @@ int run(Options o, bool frame_skip_given) {
   if (!o.controller.empty()) {
     std::shared_ptr<RolloutModel> plan_on;
     const std::string path = o.policy.substr(std::string(kCheckpointPrefix).size());
+    // The run's own reward model, read once: it scores the simulator's transitions for simulator-dynamics
+    // and the replayed samples for the plan check.
+    RewardModel run_reward = nullptr;
+    if (o.plan_on == "simulator-dynamics" || o.plan_check > 0) run_reward = load_saved_models(path).reward;
     if (o.plan_on == "simulator") plan_on = std::make_shared<SimulatorRolloutModel>(*env, at::kFloat);
-    // The simulator's transitions scored by the run's own reward model.
     if (o.plan_on == "simulator-dynamics")
-      plan_on = std::make_shared<SimulatorRolloutModel>(*env, at::kFloat, load_saved_models(path).reward);
+      plan_on = std::make_shared<SimulatorRolloutModel>(*env, at::kFloat, run_reward);
     SavedController c = load_saved_controller(path, o.controller, plan_on, o.overrides);
     controller = std::move(c.controller);
     // The planner's samples come from LibTorch's generator: its own stream, as the policy's.
@@ -319,7 +322,7 @@ int run(Options o, bool frame_skip_given) {
       const auto* planner = dynamic_cast<const StochasticHybrid*>(controller.get());
       check(planner != nullptr, "--plan-check: the run's {} controller is not a stochastic planner",
             o.controller);
-      plan_check.emplace(*env, load_saved_models(path).reward);
+      plan_check.emplace(*env, run_reward);
       policy = std::make_unique<PlanCheckingPolicy>(std::move(policy), *planner, *plan_check, o.plan_check);
     }
     const char* model = o.plan_on == "simulator" ? "a copy of the simulator (a perfect model)"

@@ -288,11 +288,15 @@ TEST(RolloutCli, ActsWithARunsPlannerOnItsModelsOrOnTheSimulator) {
     // The same seed repeats itself.
     EXPECT_EQ(run(rollout + policy + " --controller stochastic_hybrid --plan-on " + model).output, r.output);
   }
-  // --plan-check replays the planner's samples on the simulator: every 5th of 20 steps is 4 calls; on the
-  // simulator itself the models rank the samples exactly as the replay does.
+  // --plan-check replays the planner's samples on the simulator: every 5th of 20 steps is 4 calls, and the
+  // episodes are those of the same planner unchecked; on the simulator itself the models rank the samples
+  // exactly as the replay does.
   r = run(rollout + policy + " --controller stochastic_hybrid --plan-check 5");
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("plan check over 4 planning calls"), std::string::npos) << r.output;
+  const std::string unchecked = run(rollout + policy + " --controller stochastic_hybrid").output;
+  for (const char* line : {"episode 0:", "episode 1:", "mean return"})
+    EXPECT_EQ(line_starting(r.output, line), line_starting(unchecked, line)) << line;
   r = run(rollout + policy + " --controller stochastic_hybrid --plan-on simulator --plan-check 5");
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_NE(
