@@ -129,13 +129,19 @@ std::unique_ptr<Learner> make_model_learner(LearnerContext& context) {
     if (normalize) set_input_normalisation(context, "model.normalize_inputs", o);
     m.reward = RewardModel(o);
   }
+  // The ensemble's other members after both models, so that a single model draws what it always drew.
+  const int64_t members = c.get_int("model.ensemble");
+  while (static_cast<int64_t>(m.ensemble.size()) + 1 < members) {
+    DynamicsModelOptions o = m.dynamics->options();
+    m.ensemble.push_back(DynamicsModel(o));
+  }
   ModelLearnerOptions mo;
   mo.lr = c.get_double("model.lr");
   mo.reward_gamma = c.get_double("model.reward_gamma");
   mo.reward_weight = c.get_double("model.reward_weight");
   mo.weight_decay = c.get_double("model.weight_decay");
   mo.rollout_steps = c.get_int("model.rollout_steps");
-  return std::make_unique<ModelLearner>(m.dynamics, m.reward, mo);
+  return std::make_unique<ModelLearner>(m.dynamics, m.reward, mo, m.ensemble);
 }
 
 // Behaviour cloning --------------------------------------------------------------------------------------

@@ -64,14 +64,25 @@ DeterministicHybridOptions deterministic_options(const Config& c, bool evaluatio
 
 // What a stochastic planner rolls out on: models.plan_on if set, else the learned models.
 std::shared_ptr<RolloutModel> rollout_model(const LearnedModels& m, const StochasticHybridOptions& o,
-                                            const std::string& controller) {
+                                            double disagreement_penalty, const std::string& controller) {
   if (m.plan_on) {
     check(m.policy.is_empty() || m.plan_on->dtype() == m.policy->parameters().front().scalar_type(),
           "{}: the model it plans on and the policy differ in dtype", controller);
     return m.plan_on;
   }
   require(!m.dynamics.is_empty() && !m.reward.is_empty(), controller, "dynamics and reward model");
-  return std::make_shared<LearnedRolloutModel>(m.dynamics, m.reward, o.clamp_to_domain);
+  EnsembleOptions ensemble;
+  ensemble.members = m.ensemble;
+  ensemble.disagreement_penalty = disagreement_penalty;
+  return std::make_shared<LearnedRolloutModel>(m.dynamics, m.reward, o.clamp_to_domain, std::move(ensemble));
+}
+
+// The deterministic planners differentiate one model; an ensemble's others would be trained and ignored.
+void require_single_model(const LearnedModels& m, const char* controller) {
+  check(m.ensemble.empty(),
+        "controller '{}' plans on one dynamics model: model.ensemble must be 1 (the stochastic planners "
+        "use an ensemble)",
+        controller);
 }
 
 std::unique_ptr<Controller> make_policy_controller(const LearnedModels& m, const Config&, bool evaluation) {
@@ -104,8 +115,9 @@ std::unique_ptr<Controller> make_stochastic_hybrid(const LearnedModels& m, const
       return critics->min_q(x, policy->mean_action(x));
     };
   }
-  return std::make_unique<StochasticHybrid>(sampler, rollout_model(m, o, "stochastic_hybrid"), o, m.policy,
-                                            "stochastic_hybrid", std::move(value));
+  return std::make_unique<StochasticHybrid>(
+      sampler, rollout_model(m, o, c.get_double("planner.disagreement_penalty"), "stochastic_hybrid"), o,
+      m.policy, "stochastic_hybrid", std::move(value));
 }
 
 std::unique_ptr<Controller> make_mppi(const LearnedModels& m, const Config& c, bool) {
@@ -114,7 +126,8 @@ std::unique_ptr<Controller> make_mppi(const LearnedModels& m, const Config& c, b
   // The baseline has no critic: it plans with the models alone.
   StochasticHybridOptions o = stochastic_options(c);
   o.terminal_value_weight = 0;
-  return std::make_unique<StochasticHybrid>(sampler, rollout_model(m, o, "mppi"), o, nullptr, "mppi");
+  return std::make_unique<StochasticHybrid>(
+      sampler, rollout_model(m, o, c.get_double("planner.disagreement_penalty"), "mppi"), o, nullptr, "mppi");
 }
 
 std::unique_ptr<Controller> make_deterministic_hybrid(const LearnedModels& m, const Config& c,
@@ -122,12 +135,14 @@ std::unique_ptr<Controller> make_deterministic_hybrid(const LearnedModels& m, co
   require(!m.policy.is_empty(), "deterministic_hybrid", "policy");
   require(!m.dynamics.is_empty() && !m.reward.is_empty(), "deterministic_hybrid",
           "dynamics and reward model");
+  require_single_model(m, "deterministic_hybrid");
   return std::make_unique<DeterministicHybrid>(
       m.policy, m.dynamics, m.reward, deterministic_options(c, evaluation, true), "deterministic_hybrid");
 }
 
 std::unique_ptr<Controller> make_mpc_deterministic(const LearnedModels& m, const Config& c, bool evaluation) {
   require(!m.dynamics.is_empty() && !m.reward.is_empty(), "mpc_deterministic", "dynamics and reward model");
+  require_single_model(m, "mpc_deterministic");
   return std::make_unique<DeterministicHybrid>(
       nullptr, m.dynamics, m.reward, deterministic_options(c, evaluation, false), "mpc_deterministic");
 }
@@ -165,6 +180,11 @@ std::unique_ptr<Controller> make_controller(const std::string& name, const Learn
   check(it != controllers().end(), "unknown controller '{}'; known controllers: {}", name,
         fmt::join(controller_names(), ", "));
   return it->second(models, config, evaluation);
+}
+
+std::string ensemble_member_key(size_t i) {
+  check(i >= 1, "ensemble member 0 is the dynamics model itself");
+  return fmt::format("dynamics_member{}", i);
 }
 
 std::vector<std::string> controller_names() {

@@ -51,12 +51,17 @@ std::vector<std::string> method_names();
 struct LearnedModels {
   GaussianPolicy policy{nullptr};
   DynamicsModel dynamics{nullptr};
+  // With model.ensemble N > 1, the ensemble's other N - 1 dynamics models (`dynamics` is its first).
+  std::vector<DynamicsModel> ensemble;
   RewardModel reward{nullptr};
   TwinQNetwork critics{nullptr};  // SAC's critics (not their target): the planner's terminal value
   // If set, the stochastic planners (hybrid-stochastic, NN-MPPI) roll out on this instead of the learned
   // dynamics and reward models (the tools' SimulatorRolloutModel: the planner with a perfect model).
   std::shared_ptr<RolloutModel> plan_on;
 };
+
+// The checkpoint key of the dynamics ensemble's member i (i >= 1; member 0 is "dynamics").
+std::string ensemble_member_key(size_t i);
 
 // Builds the controller registered as `name` from the config's planner settings. `evaluation` switches off
 // training-time exploration (policy sampling, deterministic exploration noise).

@@ -11,8 +11,12 @@ const char* const kDomainLow = "models.domain_low";
 const char* const kDomainHigh = "models.domain_high";
 }  // namespace
 
-ModelLearner::ModelLearner(DynamicsModel dynamics, RewardModel reward, const ModelLearnerOptions& options)
-    : options_(options), dynamics_(std::move(dynamics)), reward_(std::move(reward)) {
+ModelLearner::ModelLearner(DynamicsModel dynamics, RewardModel reward, const ModelLearnerOptions& options,
+                           std::vector<DynamicsModel> ensemble)
+    : options_(options),
+      dynamics_(std::move(dynamics)),
+      members_(std::move(ensemble)),
+      reward_(std::move(reward)) {
   check(!reward_->options().reads_next_state || options_.reward_gamma == 0.0,
         "a reward model of the next state (model.reward_input next_state) is fitted by regression: "
         "model.reward_gamma must be 0, got {}",
@@ -20,13 +24,23 @@ ModelLearner::ModelLearner(DynamicsModel dynamics, RewardModel reward, const Mod
   std::vector<torch::Tensor> params = dynamics_->parameters();
   for (auto& p : reward_->parameters())
     params.push_back(p);
+  // After the reward model: a single model's flat buffer is laid out as it always was.
+  for (DynamicsModel& m : members_)
+    for (auto& p : m->parameters())
+      params.push_back(p);
   optimizer_ = std::make_unique<FlatAdam>(params, FlatAdamOptions{options.lr});
   // Read after the optimizer rebinds the parameters to its flat buffer, so the views stay the live ones.
   if (options_.weight_decay > 0) {
-    for (const auto& p : dynamics_->named_parameters(/*recurse=*/true)) {
-      const std::string& name = p.key();
-      if (name.size() >= 6 && name.compare(name.size() - 6, 6, "weight") == 0) decayed_.push_back(p.value());
-    }
+    auto add_weights = [&](DynamicsModel& m) {
+      for (const auto& p : m->named_parameters(/*recurse=*/true)) {
+        const std::string& name = p.key();
+        if (name.size() >= 6 && name.compare(name.size() - 6, 6, "weight") == 0)
+          decayed_.push_back(p.value());
+      }
+    };
+    add_weights(dynamics_);
+    for (DynamicsModel& m : members_)
+      add_weights(m);
   }
 }
 
@@ -39,11 +53,19 @@ ModelLosses ModelLearner::update(const Batch& b) {
     // The open-loop loss backpropagates through the K predictions: autograd, outside inference mode.
     losses.dynamics =
         dynamics_->rollout_loss_with_gradient(b.states.narrow(0, 0, batch), b.actions, b.next_states);
+    for (DynamicsModel& m : members_)
+      losses.dynamics +=
+          m->rollout_loss_with_gradient(b.states.narrow(0, 0, batch), b.actions, b.next_states);
   }
   // The other backward passes are written by hand (no autograd graph): each writes its own parameters'
   // gradients, so the flat gradient buffer needs no zeroing.
   c10::InferenceMode guard;
-  if (b.steps == 1) losses.dynamics = dynamics_->loss_with_gradient(b.states, b.actions, b.next_states);
+  if (b.steps == 1) {
+    losses.dynamics = dynamics_->loss_with_gradient(b.states, b.actions, b.next_states);
+    for (DynamicsModel& m : members_)
+      losses.dynamics += m->loss_with_gradient(b.states, b.actions, b.next_states);
+  }
+  losses.dynamics /= static_cast<double>(members_.size() + 1);
   for (auto& w : decayed_)
     w.mutable_grad().add_(w, options_.weight_decay);
   // The reward model trains on each sequence's first transition, at the one-step cost: a uniform sample
@@ -63,12 +85,16 @@ ModelLosses ModelLearner::update(const Batch& b) {
 
 void ModelLearner::save(CheckpointWriter& w) const {
   w.add_module("dynamics", *dynamics_);
+  for (size_t i = 0; i < members_.size(); ++i)
+    w.add_module(ensemble_member_key(i + 1), *members_[i]);
   w.add_module("reward", *reward_);
   save_training_state(w);
 }
 
 void ModelLearner::load(CheckpointReader& r) {
   r.load_module("dynamics", *dynamics_);
+  for (size_t i = 0; i < members_.size(); ++i)
+    r.load_module(ensemble_member_key(i + 1), *members_[i]);
   r.load_module("reward", *reward_);
   load_training_state(r);
 }

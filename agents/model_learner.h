@@ -36,7 +36,10 @@ struct ModelLosses {
 
 class ModelLearner : public Learner {
  public:
-  ModelLearner(DynamicsModel dynamics, RewardModel reward, const ModelLearnerOptions& options);
+  // `ensemble`: the dynamics ensemble's other members (model.ensemble > 1), each trained on every batch
+  // exactly as `dynamics` is, from its own initial weights; the logged dynamics loss is the members' mean.
+  ModelLearner(DynamicsModel dynamics, RewardModel reward, const ModelLearnerOptions& options,
+               std::vector<DynamicsModel> ensemble = {});
   // One Adam step on a batch of transitions, or of sequences (batch.steps == options.rollout_steps).
   ModelLosses update(const Batch& batch);
   // The Learner view of update: loss/dynamics, loss/reward.
@@ -59,9 +62,10 @@ class ModelLearner : public Learner {
  private:
   ModelLearnerOptions options_;
   DynamicsModel dynamics_;
+  std::vector<DynamicsModel> members_;  // the ensemble's other members
   RewardModel reward_;
   std::unique_ptr<FlatAdam> optimizer_;
-  std::vector<torch::Tensor> decayed_;  // the dynamics model's weight matrices (views into the flat buffer)
+  std::vector<torch::Tensor> decayed_;  // the dynamics models' weight matrices (views into the flat buffer)
 };
 
 }  // namespace hlt

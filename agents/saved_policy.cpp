@@ -142,6 +142,8 @@ SavedController load_saved_controller(const std::string& path, const std::string
   };
   load("policy", models.policy);
   load("dynamics", models.dynamics);
+  for (size_t i = 0; i < models.ensemble.size(); ++i)
+    load(ensemble_member_key(i + 1).c_str(), models.ensemble[i]);
   load("reward", models.reward);
   // A run's checkpoint.pt (not its final.pt, which holds the networks alone) has them.
   if (r.has("torch_rng")) {
@@ -153,6 +155,8 @@ SavedController load_saved_controller(const std::string& path, const std::string
   };
   evaluation_mode(models.policy);
   evaluation_mode(models.dynamics);
+  for (DynamicsModel& m : models.ensemble)
+    evaluation_mode(m);
   evaluation_mode(models.reward);
   evaluation_mode(models.critics);
   models.plan_on = std::move(plan_on);

@@ -108,6 +108,11 @@ Config make_train_config() {
                "steps of the dynamics loss: 1, the one-step likelihood (the paper's); K > 1, the mean "
                "likelihood of K open-loop predictions along sequences of K consecutive transitions",
                1, 1000)
+      .add_int("model.ensemble", 1,
+               "dynamics models trained side by side from their own initial weights on the same batches "
+               "(1: the paper's single model); the stochastic planners predict with their mean and can "
+               "penalise their disagreement (planner.disagreement_penalty), the deterministic ones need 1",
+               1, 100)
       .add_bool("model.normalize_inputs", false,
                 "the dynamics and reward models see the state as policy.normalize_inputs shows it to the "
                 "policy (the environment's declared observation ranges); the dynamics' residual stays raw")
@@ -155,6 +160,11 @@ Config make_train_config() {
           "min(Q1, Q2)(s_H, tanh(mu(s_H))), to its predicted return (0: the paper's rule, no value "
           "beyond the horizon)",
           0.0, 1e6)
+      .add_double("planner.disagreement_penalty", 0.0,
+                  "stochastic planners with model.ensemble > 1: every predicted step's reward loses this "
+                  "times the ensemble's disagreement on the next state, in units of the model's noise "
+                  "scale (0: none; the members' mean is used either way)",
+                  0.0, 1e6)
       .add_bool("planner.density_in_weights", true, "include log p(v) in the stochastic planner's weights")
       .add_double("planner.min_ess_fraction", 0.0,
                   "if > 0, temper a step's J / lambda so its weights' effective sample size is at least this "

@@ -356,6 +356,9 @@ struct Trainer::Impl {
     if (models.dynamics) {
       for (const auto& p : models.dynamics->parameters())
         params.push_back(p);
+      for (const DynamicsModel& m : models.ensemble)
+        for (const auto& p : m->parameters())
+          params.push_back(p);
       for (const auto& p : models.reward->parameters())
         params.push_back(p);
     }
@@ -690,6 +693,8 @@ struct Trainer::Impl {
     }
     if (models.dynamics) {
       w.add_module("dynamics", *models.dynamics);
+      for (size_t i = 0; i < models.ensemble.size(); ++i)
+        w.add_module(ensemble_member_key(i + 1), *models.ensemble[i]);
       w.add_module("reward", *models.reward);
     }
   }
@@ -745,6 +750,8 @@ struct Trainer::Impl {
     if (models.policy) r.load_module("policy", *models.policy);
     if (models.dynamics) {
       r.load_module("dynamics", *models.dynamics);
+      for (size_t i = 0; i < models.ensemble.size(); ++i)
+        r.load_module(ensemble_member_key(i + 1), *models.ensemble[i]);
       r.load_module("reward", *models.reward);
     }
     for (ActiveLearner& l : learners)

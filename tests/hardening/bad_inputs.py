@@ -289,6 +289,12 @@ register_simple(T, "values", "train.next_state_reward_deterministic",
 register_simple(T, "values", "train.demo_noise_negative",
                 ["--env", "ant", "--method", "bc", "imitation.expert=constant:0", "imitation.demo_noise=-0.1"],
                 ["imitation.demo_noise"])
+register_simple(T, "values", "train.ensemble_deterministic",
+                ["--env", "pendulum", "--method", "hybrid-deterministic", "model.ensemble=3"],
+                ["model.ensemble must be 1"])
+register_simple(T, "values", "train.disagreement_penalty_single_model",
+                ["--env", "pendulum", "--method", "hybrid-stochastic", "planner.disagreement_penalty=1"],
+                ["model.ensemble > 1"])
 register_simple(T, "values", "train.rollout_steps_longer_than_episodes",
                 lambda c: ["--env", "pendulum", "--method", "mppi", "--steps", "300", "train.update_after=250",
                            "model.rollout_steps=300", "--no-progress", "--out", tmp(c, "rollout")],
