@@ -17,6 +17,7 @@
 #include "hlt/data/replay_buffer.h"
 #include "hlt/util/error.h"
 #include "support/error_of.h"
+#include "support/random_transitions.h"
 
 namespace hlt {
 namespace {
@@ -24,16 +25,7 @@ namespace {
 constexpr int64_t kN = 3, kM = 2;
 
 ReplayBuffer random_buffer(uint64_t seed) {
-  ReplayBuffer buffer(64, kN, kM, seed);
-  torch::manual_seed(7);
-  for (int i = 0; i < 40; ++i) {
-    const auto s = torch::randn({kN}, torch::kFloat64), s2 = s + 0.1 * torch::randn({kN}, torch::kFloat64);
-    const auto a = torch::rand({kM}, torch::kFloat64) * 1.8 - 0.9,
-               a2 = torch::rand({kM}, torch::kFloat64) * 1.8 - 0.9;
-    buffer.add(s.data_ptr<double>(), a.data_ptr<double>(), 0.1 * i, s2.data_ptr<double>(),
-               a2.data_ptr<double>(), i % 13 == 12);
-  }
-  return buffer;
+  return testing::random_transitions(kN, kM, seed);
 }
 
 // A network of the same options holding the same values.
