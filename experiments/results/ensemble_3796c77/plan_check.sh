@@ -25,3 +25,8 @@ for v in ${CP_VARIANTS:-ctl110 e5_110}; do
     check cartpole_${v}_s$s cartpole_swingup $RUNS/cp_$v/cartpole_swingup/hybrid-stochastic/seed$s
   done
 done
+for v in ${CP100_VARIANTS:-ctl100 e5}; do
+  for s in 100 101 102 103; do
+    check cartpole_${v}_s$s cartpole_swingup $RUNS/cp_$v/cartpole_swingup/hybrid-stochastic/seed$s
+  done
+done
