@@ -1,5 +1,6 @@
 // Planner and learner costs at the paper's network sizes, one thread: one planning call of each controller,
-// the matrix products each planner cannot avoid (its floor), a SAC update and a model update.
+// the matrix products each planner cannot avoid (its floor), a SAC update and a model update; the stochastic
+// hybrid also on an ensemble of five dynamics models.
 //
 // Sizes: (n=5, m=1, K=20, H=5) is the cart-pole swing-up (sin networks); (n=26, m=6, K=60, H=10) is the
 // half-cheetah (ReLU networks). Dynamics hidden 200, reward 200 x 200, policy 128, critics 2 x 256.
@@ -58,6 +59,22 @@ void StochasticHybridBench(benchmark::State& st) {
   Setup s = make_setup(st);
   StochasticHybrid c(std::make_shared<PolicySampler>(s.policy), s.dynamics, s.reward,
                      StochasticHybridOptions{s.H, s.K, 0.1, true, 1e-5}, s.policy);
+  for (auto _ : st)
+    benchmark::DoNotOptimize(c.act(s.state));
+}
+
+// The stochastic hybrid on an ensemble of five dynamics models (model.ensemble 5; their mean and their
+// disagreement penalty): what the other four members' predictions add to a planning call.
+void StochasticHybridEnsembleBench(benchmark::State& st) {
+  Setup s = make_setup(st);
+  EnsembleOptions ensemble;
+  for (int i = 0; i < 4; ++i)
+    ensemble.members.push_back(DynamicsModel(s.dynamics->options()));
+  ensemble.disagreement_penalty = 1.0;
+  const StochasticHybridOptions o{s.H, s.K, 0.1, true, 1e-5};
+  StochasticHybrid c(std::make_shared<PolicySampler>(s.policy),
+                     std::make_shared<LearnedRolloutModel>(s.dynamics, s.reward, false, std::move(ensemble)),
+                     o, s.policy);
   for (auto _ : st)
     benchmark::DoNotOptimize(c.act(s.state));
 }
@@ -152,6 +169,7 @@ void DeterministicHybridFloor(benchmark::State& st) {
 
 BENCHMARK(StochasticHybridBench)->Name("StochasticHybrid")->Apply(planner_args);
 BENCHMARK(StochasticHybridFloor)->Name("StochasticHybridFloor")->Apply(planner_args);
+BENCHMARK(StochasticHybridEnsembleBench)->Name("StochasticHybridEnsemble5")->Apply(planner_args);
 BENCHMARK(MPPIBench)->Name("MPPI")->Apply(planner_args);
 BENCHMARK(MPPIFloor)->Name("MPPIFloor")->Apply(planner_args);
 BENCHMARK(DeterministicHybridBench)->Name("DeterministicHybrid")->Apply(planner_args);
