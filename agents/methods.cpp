@@ -64,7 +64,7 @@ DeterministicHybridOptions deterministic_options(const Config& c, bool evaluatio
 
 // What a stochastic planner rolls out on: models.plan_on if set, else the learned models.
 std::shared_ptr<RolloutModel> rollout_model(const LearnedModels& m, const StochasticHybridOptions& o,
-                                            double disagreement_penalty, const std::string& controller) {
+                                            const Config& c, const std::string& controller) {
   if (m.plan_on) {
     check(m.policy.is_empty() || m.plan_on->dtype() == m.policy->parameters().front().scalar_type(),
           "{}: the model it plans on and the policy differ in dtype", controller);
@@ -73,7 +73,7 @@ std::shared_ptr<RolloutModel> rollout_model(const LearnedModels& m, const Stocha
   require(!m.dynamics.is_empty() && !m.reward.is_empty(), controller, "dynamics and reward model");
   EnsembleOptions ensemble;
   ensemble.members = m.ensemble;
-  ensemble.disagreement_penalty = disagreement_penalty;
+  ensemble.disagreement_penalty = c.get_double("planner.disagreement_penalty");
   return std::make_shared<LearnedRolloutModel>(m.dynamics, m.reward, o.clamp_to_domain, std::move(ensemble));
 }
 
@@ -115,9 +115,8 @@ std::unique_ptr<Controller> make_stochastic_hybrid(const LearnedModels& m, const
       return critics->min_q(x, policy->mean_action(x));
     };
   }
-  return std::make_unique<StochasticHybrid>(
-      sampler, rollout_model(m, o, c.get_double("planner.disagreement_penalty"), "stochastic_hybrid"), o,
-      m.policy, "stochastic_hybrid", std::move(value));
+  return std::make_unique<StochasticHybrid>(sampler, rollout_model(m, o, c, "stochastic_hybrid"), o, m.policy,
+                                            "stochastic_hybrid", std::move(value));
 }
 
 std::unique_ptr<Controller> make_mppi(const LearnedModels& m, const Config& c, bool) {
@@ -126,8 +125,7 @@ std::unique_ptr<Controller> make_mppi(const LearnedModels& m, const Config& c, b
   // The baseline has no critic: it plans with the models alone.
   StochasticHybridOptions o = stochastic_options(c);
   o.terminal_value_weight = 0;
-  return std::make_unique<StochasticHybrid>(
-      sampler, rollout_model(m, o, c.get_double("planner.disagreement_penalty"), "mppi"), o, nullptr, "mppi");
+  return std::make_unique<StochasticHybrid>(sampler, rollout_model(m, o, c, "mppi"), o, nullptr, "mppi");
 }
 
 std::unique_ptr<Controller> make_deterministic_hybrid(const LearnedModels& m, const Config& c,
@@ -182,9 +180,14 @@ std::unique_ptr<Controller> make_controller(const std::string& name, const Learn
   return it->second(models, config, evaluation);
 }
 
-std::string ensemble_member_key(size_t i) {
-  check(i >= 1, "ensemble member 0 is the dynamics model itself");
-  return fmt::format("dynamics_member{}", i);
+std::vector<std::pair<std::string, DynamicsModel>> named_dynamics(const DynamicsModel& first,
+                                                                  const std::vector<DynamicsModel>& others) {
+  std::vector<std::pair<std::string, DynamicsModel>> out;
+  if (first.is_empty()) return out;
+  out.emplace_back("dynamics", first);
+  for (size_t i = 0; i < others.size(); ++i)
+    out.emplace_back(fmt::format("dynamics_member{}", i + 1), others[i]);
+  return out;
 }
 
 std::vector<std::string> controller_names() {

@@ -5,6 +5,7 @@
 
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "hlt/control/controller.h"
@@ -60,8 +61,10 @@ struct LearnedModels {
   std::shared_ptr<RolloutModel> plan_on;
 };
 
-// The checkpoint key of the dynamics ensemble's member i (i >= 1; member 0 is "dynamics").
-std::string ensemble_member_key(size_t i);
+// The dynamics networks by checkpoint key: `first` as "dynamics", then each of `others` (an ensemble's
+// other members) as "dynamics_member<i>", i = 1, 2, ...; none if `first` is empty.
+std::vector<std::pair<std::string, DynamicsModel>> named_dynamics(const DynamicsModel& first,
+                                                                  const std::vector<DynamicsModel>& others);
 
 // Builds the controller registered as `name` from the config's planner settings. `evaluation` switches off
 // training-time exploration (policy sampling, deterministic exploration noise).

@@ -84,17 +84,15 @@ ModelLosses ModelLearner::update(const Batch& b) {
 }
 
 void ModelLearner::save(CheckpointWriter& w) const {
-  w.add_module("dynamics", *dynamics_);
-  for (size_t i = 0; i < members_.size(); ++i)
-    w.add_module(ensemble_member_key(i + 1), *members_[i]);
+  for (const auto& [key, m] : named_dynamics(dynamics_, members_))
+    w.add_module(key, *m);
   w.add_module("reward", *reward_);
   save_training_state(w);
 }
 
 void ModelLearner::load(CheckpointReader& r) {
-  r.load_module("dynamics", *dynamics_);
-  for (size_t i = 0; i < members_.size(); ++i)
-    r.load_module(ensemble_member_key(i + 1), *members_[i]);
+  for (auto [key, m] : named_dynamics(dynamics_, members_))
+    r.load_module(key, *m);
   r.load_module("reward", *reward_);
   load_training_state(r);
 }

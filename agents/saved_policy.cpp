@@ -135,15 +135,14 @@ SavedController load_saved_controller(const std::string& path, const std::string
   const std::vector<std::unique_ptr<Learner>> learners = build_learners(config, out.env, names, models);
   // As the trainer resumes: the shared networks, then each learner's own state (SAC's critics, the
   // dynamics model's domain) where the file has it.
-  auto load = [&](const char* name, auto& module) {
+  auto load = [&](const std::string& name, auto& module) {
     if (module.is_empty()) return;
     check(r.has(name), "checkpoint {} holds no '{}' network", path, name);
     r.load_module(name, *module);
   };
   load("policy", models.policy);
-  load("dynamics", models.dynamics);
-  for (size_t i = 0; i < models.ensemble.size(); ++i)
-    load(ensemble_member_key(i + 1).c_str(), models.ensemble[i]);
+  for (auto [key, m] : named_dynamics(models.dynamics, models.ensemble))
+    load(key, m);
   load("reward", models.reward);
   // A run's checkpoint.pt (not its final.pt, which holds the networks alone) has them.
   if (r.has("torch_rng")) {
@@ -154,8 +153,7 @@ SavedController load_saved_controller(const std::string& path, const std::string
     if (!module.is_empty()) module->eval();
   };
   evaluation_mode(models.policy);
-  evaluation_mode(models.dynamics);
-  for (DynamicsModel& m : models.ensemble)
+  for (auto [key, m] : named_dynamics(models.dynamics, models.ensemble))
     evaluation_mode(m);
   evaluation_mode(models.reward);
   evaluation_mode(models.critics);

@@ -354,9 +354,7 @@ struct Trainer::Impl {
     std::vector<torch::Tensor> params;
     if (models.policy) params = models.policy->parameters();
     if (models.dynamics) {
-      for (const auto& p : models.dynamics->parameters())
-        params.push_back(p);
-      for (const DynamicsModel& m : models.ensemble)
+      for (const auto& [key, m] : named_dynamics(models.dynamics, models.ensemble))
         for (const auto& p : m->parameters())
           params.push_back(p);
       for (const auto& p : models.reward->parameters())
@@ -692,9 +690,8 @@ struct Trainer::Impl {
       w.add_module("policy", *models.policy);
     }
     if (models.dynamics) {
-      w.add_module("dynamics", *models.dynamics);
-      for (size_t i = 0; i < models.ensemble.size(); ++i)
-        w.add_module(ensemble_member_key(i + 1), *models.ensemble[i]);
+      for (const auto& [key, m] : named_dynamics(models.dynamics, models.ensemble))
+        w.add_module(key, *m);
       w.add_module("reward", *models.reward);
     }
   }
@@ -749,9 +746,8 @@ struct Trainer::Impl {
     generator.set_state(r.tensor("torch_rng"));
     if (models.policy) r.load_module("policy", *models.policy);
     if (models.dynamics) {
-      r.load_module("dynamics", *models.dynamics);
-      for (size_t i = 0; i < models.ensemble.size(); ++i)
-        r.load_module(ensemble_member_key(i + 1), *models.ensemble[i]);
+      for (auto [key, m] : named_dynamics(models.dynamics, models.ensemble))
+        r.load_module(key, *m);
       r.load_module("reward", *models.reward);
     }
     for (ActiveLearner& l : learners)

@@ -106,7 +106,12 @@ TEST(Ensemble, TheLearnerBuildsTheMembersAndTheyGoThroughACheckpoint) {
     EXPECT_EQ(first[k].value, second[k].value) << first[k].tag;
   for (size_t i = 0; i < 2; ++i)
     EXPECT_TRUE(torch::equal(other.ensemble[i]->fc2->weight, models.ensemble[i]->fc2->weight)) << i;
-  EXPECT_EQ(ensemble_member_key(1), "dynamics_member1");
+  const auto named = named_dynamics(models.dynamics, models.ensemble);
+  ASSERT_EQ(named.size(), 3u);
+  EXPECT_EQ(named[0].first, "dynamics");
+  EXPECT_EQ(named[1].first, "dynamics_member1");
+  EXPECT_EQ(named[2].first, "dynamics_member2");
+  EXPECT_TRUE(named_dynamics(DynamicsModel(nullptr), {}).empty());
   std::filesystem::remove(path);
 }
 
