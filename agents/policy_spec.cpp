@@ -26,10 +26,14 @@ std::unique_ptr<PolicySource> make_fixed_policy(const std::string& spec, const E
           env.action_dim());
     return expert;
   }
-  if (spec.rfind(OraclePolicy::kPrefix, 0) == 0)
-    return std::make_unique<OraclePolicy>(
-        env, OraclePolicy::parse(spec.substr(std::string(OraclePolicy::kPrefix).size())), seed);
-  return make_policy_for(spec, env, seed);
+  try {
+    if (spec.rfind(OraclePolicy::kPrefix, 0) == 0)
+      return std::make_unique<OraclePolicy>(
+          env, OraclePolicy::parse(spec.substr(std::string(OraclePolicy::kPrefix).size())), seed);
+    return make_policy_for(spec, env, seed);
+  } catch (const Error& e) {
+    throw Error(fmt::format("{}: {}", what, e.what()));
+  }
 }
 
 NoisyPolicy::NoisyPolicy(std::unique_ptr<PolicySource> inner, double sigma, uint64_t seed)

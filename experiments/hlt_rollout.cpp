@@ -192,7 +192,49 @@ struct Options {
   // The stochastic planners' model with --controller: the run's learned models or the simulator.
   std::string plan_on = "learned";
   std::vector<std::string> overrides;  // key=value changes to the run's config with --controller
-  int plan_check = 0;  // replay the planner's samples on the simulator at every N-th step (0: never)
+  int plan_check = 0;   // replay the planner's samples on the simulator at every N-th step (0: never)
+  std::string compare;  // a reference policy asked at every step, on the visited states, without acting
+};
+
+// How far the acting policy's actions are from a reference policy's on the states the acting policy visits:
+// imitation's error where it matters (behaviour cloning is fitted on the expert's states; its test runs on
+// its own, and the difference between the two errors is the covariate shift).
+class ActionComparison {
+ public:
+  ActionComparison(std::unique_ptr<PolicySource> reference, int action_dim)
+      : reference_(std::move(reference)), abs_sum_(Eigen::VectorXd::Zero(action_dim)) {}
+  void add(const Transition& t) {
+    const Eigen::VectorXd ref = reference_->act(t.observation);
+    check(ref.size() == t.action.size(), "--compare: the reference gives {} action components, not {}",
+          ref.size(), t.action.size());
+    const Eigen::VectorXd diff = t.action - ref;
+    abs_sum_ += diff.cwiseAbs();
+    square_sum_ += diff.squaredNorm();
+    for (Eigen::Index i = 0; i < diff.size(); ++i)
+      if (t.action[i] * ref[i] < 0.0) ++opposite_;
+    ++steps_;
+  }
+  void print() const {
+    if (steps_ == 0) return;
+    const double n = static_cast<double>(steps_) * abs_sum_.size();
+    fmt::print(
+        "actions against {} over {} steps: mean |a - a_ref| {:.4f}, rms {:.4f}, opposite sign in {:.1f} % of "
+        "components\n  mean |a - a_ref| per component {:.3f}\n",
+        reference_->describe(), steps_, abs_sum_.sum() / n, std::sqrt(square_sum_ / n), 100.0 * opposite_ / n,
+        fmt::join(per_component(), " "));
+  }
+
+ private:
+  std::vector<double> per_component() const {
+    std::vector<double> out(abs_sum_.size());
+    for (Eigen::Index i = 0; i < abs_sum_.size(); ++i)
+      out[i] = abs_sum_[i] / static_cast<double>(steps_);
+    return out;
+  }
+  std::unique_ptr<PolicySource> reference_;
+  Eigen::VectorXd abs_sum_;
+  double square_sum_ = 0.0;
+  int64_t opposite_ = 0, steps_ = 0;
 };
 
 // The acting policy, and after every `every`-th of its planning calls (before the environment steps) the
@@ -342,6 +384,19 @@ int run(Options o, bool frame_skip_given) {
         "--strip-frames must be >= 1 and --record-episodes >= 0");
   std::optional<PredictionCsv> predictions;
   if (models) predictions.emplace(std::move(*models), env->observation_dim());
+  std::optional<ActionComparison> comparison;
+  if (!o.compare.empty()) {
+    std::unique_ptr<PolicySource> reference;
+    if (is_checkpoint(o.compare)) {
+      SavedPolicy ref = load_saved_policy(o.compare.substr(std::string(kCheckpointPrefix).size()));
+      check(ref.env == env->name(), "--compare {}: the policy was trained on {}, not {}", o.compare, ref.env,
+            env->name());
+      reference = std::move(ref.source);
+    } else {
+      reference = make_fixed_policy(o.compare, *env, derive_seed(o.seed, 3), "--compare");
+    }
+    comparison.emplace(std::move(reference), env->action_dim());
+  }
   for (const std::string* out : {&o.csv, &o.video, &o.strip, &o.demos, &o.predictions}) {
     const auto slash = out->find_last_of('/');
     if (!out->empty() && slash != std::string::npos && slash > 0)
@@ -383,6 +438,7 @@ int run(Options o, bool frame_skip_given) {
       if (perception) perception->after_step();
       if (!o.csv.empty()) csv.add(ep, t);
       if (predictions) predictions->add(ep, t);
+      if (comparison) comparison->add(t);
       if (record) recorder.add(env->render(o.width, o.height));
       if (demos)
         demo_steps.push_back({t.observation, t.action, t.result.observation, t.result.reward,
@@ -411,6 +467,7 @@ int run(Options o, bool frame_skip_given) {
   if (perception) perception->print();
   if (predictions) predictions->print_check(*env);
   if (plan_check) fmt::print("{}", plan_check->summary());
+  if (comparison) comparison->print();
 
   if (demos) {
     demos->save(o.demos);
@@ -500,6 +557,10 @@ int run_tool(int argc, char** argv) {
                  "samples on a copy of the simulator and report how well its models ranked them (rank "
                  "correlation of predicted and simulated returns, where its choice lands among them)")
       ->capture_default_str();
+  app.add_option("--compare", o.compare,
+                 "A reference policy (the forms of --policy) asked at every step on the states the acting "
+                 "policy visits, without acting: reports how far the actions are from it (e.g. a cloned "
+                 "policy against its expert on its own states)");
   app.add_option("overrides", o.overrides,
                  "With --controller: key=value changes to the run's config before the controller is built, "
                  "e.g. planner.lambda=0.1");

@@ -174,6 +174,23 @@ TEST(RolloutCli, ReportsTheTasksSuccess) {
   EXPECT_EQ(r.output.find("success"), std::string::npos) << r.output;
 }
 
+TEST(RolloutCli, ComparesTheActionsWithAReferencePolicyOnTheVisitedStates) {
+  const std::string base =
+      std::string(HLT_ROLLOUT_BIN) + " --env pendulum --policy constant:0.5 --max-steps 10";
+  Result r = run(base + " --compare constant:-0.25");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("over 10 steps: mean |a - a_ref| 0.7500, rms 0.7500, opposite sign in 100.0 %"),
+            std::string::npos)
+      << r.output;
+  r = run(base + " --compare constant:0.25");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("mean |a - a_ref| 0.2500, rms 0.2500, opposite sign in 0.0 %"), std::string::npos)
+      << r.output;
+  r = run(base + " --compare nonsense");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.output.find("--compare"), std::string::npos) << r.output;
+}
+
 TEST(TrainCli, NeverOverwritesARunAndReportsCorruptCheckpoints) {
   const std::string dir = fresh_dir("existing");
   Result r = run(kTrain + kSmall + " --method sac --steps 60 checkpoint.every=50 eval.every=0 --out " + dir);
