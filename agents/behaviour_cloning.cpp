@@ -8,8 +8,16 @@
 namespace hlt {
 
 BehaviourCloning::BehaviourCloning(GaussianPolicy policy, const BehaviourCloningOptions& options)
-    : policy_(std::move(policy)), censor_saturated_(options.censor_saturated) {
+    : policy_(std::move(policy)), options_(options) {
+  check(options.weight_decay >= 0 && options.input_noise >= 0,
+        "behaviour cloning's weight decay and input noise must be >= 0");
   optimizer_ = std::make_unique<FlatAdam>(policy_->parameters(), FlatAdamOptions{options.lr});
+  // Read after the optimizer rebinds the parameters to its flat buffer, so the views stay the live ones.
+  if (options.weight_decay > 0)
+    for (const auto& p : policy_->named_parameters(/*recurse=*/true)) {
+      const std::string& name = p.key();
+      if (name.size() >= 6 && name.compare(name.size() - 6, 6, "weight") == 0) decayed_.push_back(p.value());
+    }
 }
 
 at::Tensor BehaviourCloning::nll(const at::Tensor& states, const at::Tensor& actions) {
@@ -18,7 +26,7 @@ at::Tensor BehaviourCloning::nll(const at::Tensor& states, const at::Tensor& act
   const auto [mean, log_std] = policy_->forward_for_fit(states);
   const at::Tensor a = actions.clamp(-1.0 + kTanhEpsilon, 1.0 - kTanhEpsilon);
   const at::Tensor u = torch::atanh(a);
-  if (!censor_saturated_) return -GaussianPolicyImpl::squashed_log_prob(u, a, mean, log_std).mean();
+  if (!options_.censor_saturated) return -GaussianPolicyImpl::squashed_log_prob(u, a, mean, log_std).mean();
   const at::Tensor saturated = actions.abs() >= kSaturatedAt;
   const at::Tensor z = (u - mean) * torch::exp(-log_std);
   const at::Tensor density =
@@ -36,9 +44,18 @@ double BehaviourCloning::loss(const at::Tensor& states, const at::Tensor& action
 }
 
 double BehaviourCloning::update(const at::Tensor& states, const at::Tensor& actions) {
-  const at::Tensor l = nll(states, actions);
+  at::Tensor inputs = states;
+  if (options_.input_noise > 0 && states.size(0) > 1)
+    inputs = states + options_.input_noise * states.std(0, /*unbiased=*/true, /*keepdim=*/true) *
+                          torch::randn_like(states);
+  const at::Tensor l = nll(inputs, actions);
   optimizer_->zero_grad();
   l.backward();
+  {
+    torch::NoGradGuard no_grad;
+    for (auto& w : decayed_)
+      w.mutable_grad().add_(w, options_.weight_decay);
+  }
   optimizer_->step();
   return l.item<double>();
 }

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <memory>
+#include <vector>
 
 #include <ATen/core/Tensor.h>
 
@@ -22,6 +23,12 @@ namespace hlt {
 struct BehaviourCloningOptions {
   double lr = 0.01;
   bool censor_saturated = true;
+  // L2 penalty 0.5 * weight_decay * |W|^2 on the policy's weight matrices (not its biases).
+  double weight_decay = 0.0;
+  // Each batch's states are perturbed by Gaussian noise of input_noise times the batch's standard deviation
+  // of that component before the loss (0: none): the policy is asked for the expert's action near, not
+  // only at, the demonstrated states.
+  double input_noise = 0.0;
 };
 
 // An action component with |a| >= kSaturatedAt is at the bound; as a censored observation it says
@@ -49,8 +56,9 @@ class BehaviourCloning : public Learner {
  private:
   at::Tensor nll(const at::Tensor& states, const at::Tensor& actions);
   GaussianPolicy policy_;
-  bool censor_saturated_;
+  BehaviourCloningOptions options_;
   std::unique_ptr<FlatAdam> optimizer_;
+  std::vector<at::Tensor> decayed_;  // the weight matrices, views into the optimizer's buffer
 };
 
 }  // namespace hlt

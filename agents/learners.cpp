@@ -154,6 +154,8 @@ std::unique_ptr<Learner> make_bc_learner(LearnerContext& context) {
   BehaviourCloningOptions o;
   o.lr = context.config.get_double("bc.lr");
   o.censor_saturated = context.config.get_bool("bc.censor_saturated");
+  o.weight_decay = context.config.get_double("bc.weight_decay");
+  o.input_noise = context.config.get_double("bc.input_noise");
   return std::make_unique<BehaviourCloning>(config_policy(context), o);
 }
 

@@ -88,6 +88,15 @@ Config make_train_config() {
       .add_bool("bc.censor_saturated", true,
                 "an expert action at the bound of the range is a censored observation (the expert asked for "
                 "at least that much), not a density at the bound")
+      .add_double(
+          "bc.weight_decay", 0.0,
+          "L2 penalty on the policy's weight matrices in behaviour cloning (0: none, the paper's loss)", 0.0,
+          1.0)
+      .add_double(
+          "bc.input_noise", 0.0,
+          "behaviour cloning: Gaussian noise on each batch's states, in units of the batch's standard "
+          "deviation of each component (0: none)",
+          0.0, 10.0)
       .add_int("model.hidden", 200, "dynamics model hidden width", 1, 100000)
       .add_string("model.activation", "sin", "dynamics model hidden activation", {"sin", "relu"})
       .add_int("model.reward_hidden", 200, "reward model hidden width (two layers)", 1, 100000)

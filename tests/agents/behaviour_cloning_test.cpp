@@ -7,6 +7,8 @@
 
 #include <cmath>
 
+#include "hlt/util/error.h"
+
 namespace hlt {
 namespace {
 
@@ -157,6 +159,58 @@ TEST(BehaviourCloning, LearnsALinearExpertFromItsDemonstrations) {
   const auto test_states = torch::rand({64, 3}) * 2 - 1;
   const auto error = (policy->mean_action(test_states) - torch::tanh(test_states.mm(W))).abs().max();
   EXPECT_LT(error.item<double>(), 0.05);
+}
+
+TEST(BehaviourCloning, WeightDecayMovesOnlyTheWeightMatrices) {
+  // At zero states the loss gives the first layer's weights no gradient (dL/dW = delta x^T = 0), so with the
+  // decay theirs is wd * W alone: Adam's first step moves each by lr against its sign. Everything else, the
+  // biases included, steps exactly as without the decay.
+  torch::manual_seed(3);
+  GaussianPolicy plain_policy(GaussianPolicyOptions{2, 1, {4}, Activation::kRelu});
+  GaussianPolicy decayed_policy(GaussianPolicyOptions{2, 1, {4}, Activation::kRelu});
+  {
+    torch::NoGradGuard g;
+    auto from = plain_policy->parameters();
+    auto to = decayed_policy->parameters();
+    for (size_t i = 0; i < from.size(); ++i)
+      to[i].copy_(from[i]);
+  }
+  BehaviourCloningOptions decay;
+  decay.lr = 0.01;
+  decay.weight_decay = 0.1;
+  BehaviourCloning plain(plain_policy, BehaviourCloningOptions{0.01});
+  BehaviourCloning decayed(decayed_policy, decay);
+  const auto states = torch::zeros({4, 2});
+  const auto actions = torch::tensor({{0.5f}, {-0.3f}, {0.1f}, {0.2f}});
+  const at::Tensor w_before = decayed_policy->mean_layers[0]->as<torch::nn::Linear>()->weight.clone();
+  EXPECT_DOUBLE_EQ(plain.update(states, actions), decayed.update(states, actions));  // the loss has no decay
+  const at::Tensor w_after = decayed_policy->mean_layers[0]->as<torch::nn::Linear>()->weight;
+  EXPECT_TRUE(torch::allclose(w_after, w_before - 0.01 * torch::sign(w_before), 0, 1e-6));
+  EXPECT_TRUE(torch::equal(plain_policy->mean_layers[0]->as<torch::nn::Linear>()->weight, w_before));
+  for (const auto& p : plain_policy->named_parameters()) {
+    const at::Tensor other = decayed_policy->named_parameters()[p.key()];
+    if (p.key().find("bias") != std::string::npos) EXPECT_TRUE(torch::equal(p.value(), other)) << p.key();
+  }
+  BehaviourCloningOptions negative;
+  negative.weight_decay = -1;
+  EXPECT_THROW(BehaviourCloning(plain_policy, negative), Error);
+}
+
+TEST(BehaviourCloning, InputNoiseIsScaledByTheBatchSpreadOfEachComponent) {
+  // The step's loss is the NLL at states + sigma * std(states) * N(0, 1), with the generator's draw.
+  torch::manual_seed(4);
+  const auto states = torch::cat({torch::rand({16, 1}) * 10, torch::rand({16, 1}) * 0.01}, 1);
+  const auto actions = torch::tanh(states.select(1, 0).unsqueeze(1) * 0.1);
+  GaussianPolicy policy(GaussianPolicyOptions{2, 1, {8}, Activation::kRelu});
+  BehaviourCloningOptions o;
+  o.input_noise = 0.3;
+  BehaviourCloning bc(policy, o);
+  torch::manual_seed(5);
+  const auto noise = torch::randn_like(states);
+  const double expected = bc.loss(states + 0.3 * states.std(0, true, true) * noise, actions);
+  EXPECT_GT(std::abs(expected - bc.loss(states, actions)), 1e-4);  // the noise changes the loss
+  torch::manual_seed(5);
+  EXPECT_NEAR(bc.update(states, actions), expected, 1e-6);
 }
 
 }  // namespace
