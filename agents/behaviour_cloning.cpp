@@ -13,11 +13,7 @@ BehaviourCloning::BehaviourCloning(GaussianPolicy policy, const BehaviourCloning
         "behaviour cloning's weight decay and input noise must be >= 0");
   optimizer_ = std::make_unique<FlatAdam>(policy_->parameters(), FlatAdamOptions{options.lr});
   // Read after the optimizer rebinds the parameters to its flat buffer, so the views stay the live ones.
-  if (options.weight_decay > 0)
-    for (const auto& p : policy_->named_parameters(/*recurse=*/true)) {
-      const std::string& name = p.key();
-      if (name.size() >= 6 && name.compare(name.size() - 6, 6, "weight") == 0) decayed_.push_back(p.value());
-    }
+  if (options.weight_decay > 0) decayed_ = weight_matrices(*policy_);
 }
 
 at::Tensor BehaviourCloning::nll(const at::Tensor& states, const at::Tensor& actions) {
@@ -51,11 +47,7 @@ double BehaviourCloning::update(const at::Tensor& states, const at::Tensor& acti
   const at::Tensor l = nll(inputs, actions);
   optimizer_->zero_grad();
   l.backward();
-  {
-    torch::NoGradGuard no_grad;
-    for (auto& w : decayed_)
-      w.mutable_grad().add_(w, options_.weight_decay);
-  }
+  add_weight_decay(decayed_, options_.weight_decay);
   optimizer_->step();
   return l.item<double>();
 }

@@ -30,18 +30,10 @@ ModelLearner::ModelLearner(DynamicsModel dynamics, RewardModel reward, const Mod
       params.push_back(p);
   optimizer_ = std::make_unique<FlatAdam>(params, FlatAdamOptions{options.lr});
   // Read after the optimizer rebinds the parameters to its flat buffer, so the views stay the live ones.
-  if (options_.weight_decay > 0) {
-    auto add_weights = [&](DynamicsModel& m) {
-      for (const auto& p : m->named_parameters(/*recurse=*/true)) {
-        const std::string& name = p.key();
-        if (name.size() >= 6 && name.compare(name.size() - 6, 6, "weight") == 0)
-          decayed_.push_back(p.value());
-      }
-    };
-    add_weights(dynamics_);
-    for (DynamicsModel& m : members_)
-      add_weights(m);
-  }
+  if (options_.weight_decay > 0)
+    for (const auto& [key, m] : named_dynamics(dynamics_, members_))
+      for (const at::Tensor& w : weight_matrices(*m))
+        decayed_.push_back(w);
 }
 
 ModelLosses ModelLearner::update(const Batch& b) {
@@ -66,8 +58,7 @@ ModelLosses ModelLearner::update(const Batch& b) {
       losses.dynamics += m->loss_with_gradient(b.states, b.actions, b.next_states);
   }
   losses.dynamics /= static_cast<double>(members_.size() + 1);
-  for (auto& w : decayed_)
-    w.mutable_grad().add_(w, options_.weight_decay);
+  add_weight_decay(decayed_, options_.weight_decay);
   // The reward model trains on each sequence's first transition, at the one-step cost: a uniform sample
   // of the transitions that start a sequence (all but the last K - 1 of each episode).
   auto first = [&](const torch::Tensor& t) { return b.steps == 1 ? t : t.narrow(0, 0, batch); };

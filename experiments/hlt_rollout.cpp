@@ -55,16 +55,19 @@ bool is_checkpoint(const std::string& spec) {
   return spec.rfind(kCheckpointPrefix, 0) == 0;
 }
 
-// The policy named on the command line: an expert's weights ("expert:PATH"), the mean action of a policy
-// trained by hlt_train (`saved`, loaded from "checkpoint:PATH"), or a simple or scripted one.
+// A policy named on the command line by the flag `what`: an expert's weights ("expert:PATH"), the mean action
+// of a policy trained by hlt_train ("checkpoint:PATH", loaded into `saved` here unless the caller already
+// did, e.g. to read its frame skip first), or a simple or scripted one.
 std::unique_ptr<PolicySource> make_policy(const std::string& spec, std::optional<SavedPolicy>& saved,
-                                          const Env& env, uint64_t seed) {
+                                          const Env& env, uint64_t seed, const std::string& what) {
+  if (!saved && is_checkpoint(spec))
+    saved = load_saved_policy(spec.substr(std::string(kCheckpointPrefix).size()));
   if (saved) {
-    check(saved->env == env.name(), "--policy {}: the policy was trained on {}, not {}", spec, saved->env,
+    check(saved->env == env.name(), "{} {}: the policy was trained on {}, not {}", what, spec, saved->env,
           env.name());
     return std::move(saved->source);
   }
-  return make_fixed_policy(spec, env, seed, "--policy");
+  return make_fixed_policy(spec, env, seed, what);
 }
 
 std::string extension(const std::string& path) {
@@ -327,7 +330,8 @@ int run(Options o, bool frame_skip_given) {
   check(o.episodes >= 1, "--episodes must be at least 1, got {}", o.episodes);
   check(o.width >= 16 && o.height >= 16, "--width and --height must be at least 16");
   // The policy's randomness is its own stream, so changing the policy never changes the environment's starts.
-  std::unique_ptr<PolicySource> policy = make_policy(o.policy, saved, *env, derive_seed(o.seed, 1));
+  std::unique_ptr<PolicySource> policy =
+      make_policy(o.policy, saved, *env, derive_seed(o.seed, 1), "--policy");
   check(o.plan_on == "learned" || o.plan_on == "simulator" || o.plan_on == "simulator-dynamics",
         "--plan-on: 'learned', 'simulator' or 'simulator-dynamics', not '{}'", o.plan_on);
   check(o.controller.empty() || saved,
@@ -386,16 +390,9 @@ int run(Options o, bool frame_skip_given) {
   if (models) predictions.emplace(std::move(*models), env->observation_dim());
   std::optional<ActionComparison> comparison;
   if (!o.compare.empty()) {
-    std::unique_ptr<PolicySource> reference;
-    if (is_checkpoint(o.compare)) {
-      SavedPolicy ref = load_saved_policy(o.compare.substr(std::string(kCheckpointPrefix).size()));
-      check(ref.env == env->name(), "--compare {}: the policy was trained on {}, not {}", o.compare, ref.env,
-            env->name());
-      reference = std::move(ref.source);
-    } else {
-      reference = make_fixed_policy(o.compare, *env, derive_seed(o.seed, 3), "--compare");
-    }
-    comparison.emplace(std::move(reference), env->action_dim());
+    std::optional<SavedPolicy> reference;
+    comparison.emplace(make_policy(o.compare, reference, *env, derive_seed(o.seed, 3), "--compare"),
+                       env->action_dim());
   }
   for (const std::string* out : {&o.csv, &o.video, &o.strip, &o.demos, &o.predictions}) {
     const auto slash = out->find_last_of('/');

@@ -12,6 +12,21 @@
 
 namespace hlt {
 
+std::vector<at::Tensor> weight_matrices(const torch::nn::Module& module) {
+  std::vector<at::Tensor> out;
+  for (const auto& p : module.named_parameters(/*recurse=*/true)) {
+    const std::string& name = p.key();
+    if (name.size() >= 6 && name.compare(name.size() - 6, 6, "weight") == 0) out.push_back(p.value());
+  }
+  return out;
+}
+
+void add_weight_decay(const std::vector<at::Tensor>& weights, double decay) {
+  torch::NoGradGuard no_grad;
+  for (const auto& w : weights)
+    w.mutable_grad().add_(w, decay);
+}
+
 at::Tensor flatten_parameters(const std::vector<at::Tensor>& params) {
   check(!params.empty(), "flatten_parameters needs at least one parameter");
   int64_t total = 0;

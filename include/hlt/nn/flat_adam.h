@@ -16,6 +16,10 @@
 
 #include <ATen/core/Tensor.h>
 
+namespace torch::nn {
+class Module;
+}  // namespace torch::nn
+
 namespace hlt {
 
 class CheckpointWriter;
@@ -31,6 +35,13 @@ struct FlatAdamOptions {
 // Rebinds `params` (distinct float32 CPU tensors) to consecutive views of one new contiguous buffer, their
 // values kept, and returns the buffer.
 at::Tensor flatten_parameters(const std::vector<at::Tensor>& params);
+
+// The parameters of `module` whose names end in "weight" (its weight matrices, not its biases): what an L2
+// penalty decays. Take them after a FlatAdam has rebound the module's parameters, so they are the live views.
+std::vector<at::Tensor> weight_matrices(const torch::nn::Module& module);
+
+// Adds decay * W to the gradient of each W in `weights`: the gradient of the penalty 0.5 * decay * |W|^2.
+void add_weight_decay(const std::vector<at::Tensor>& weights, double decay);
 
 class FlatAdam {
  public:
