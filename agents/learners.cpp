@@ -77,8 +77,10 @@ GaussianPolicy& config_policy(LearnerContext& context) {
 
 NamedLosses Sac::train(const Batch& batch) {
   const SacLosses l = update(batch);
-  return {
+  NamedLosses out = {
       {"loss/critic", l.critic}, {"loss/actor", l.actor}, {"sac/alpha", l.alpha}, {"sac/entropy", l.entropy}};
+  if (bc_weight() > 0) out.push_back({"loss/sac_bc", l.bc});
+  return out;
 }
 
 std::unique_ptr<Learner> make_sac_learner(LearnerContext& context) {
@@ -93,6 +95,7 @@ std::unique_ptr<Learner> make_sac_learner(LearnerContext& context) {
   if (c.get_double("sac.alpha_lr") > 0) so.alpha_lr = c.get_double("sac.alpha_lr");
   so.q_hidden = c.get_int_list("sac.q_hidden");
   so.initial_alpha = c.get_double("sac.initial_alpha");
+  so.bc_weight = c.get_double("sac.bc_weight");
   so.seed = context.seed;
   auto sac = std::make_unique<Sac>(policy, context.state_dim, context.action_dim, so);
   context.models.critics = sac->critics();

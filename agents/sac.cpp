@@ -198,6 +198,19 @@ SacLosses Sac::update(const Batch& b) {
   const torch::Tensor grad_a = critics_->backward_action(min_q_gradient(q, batch));
   auto [grad_u, grad_log_std] =
       actor_gradients(grad_a, a, std, eps, raw_log_std, alpha, batch, opt.log_std_min, opt.log_std_max);
+  if (options_.bc_weight > 0) {
+    // bc_weight E[-log pi(a_b|s)] with u_b = atanh(clip(a_b)), z = (u_b - mu) / sigma:
+    //   dL/dmu = -w z / (sigma B),  dL/dlog_sigma = w (1 - z^2) / B (zero where the clamp is active);
+    // the tanh correction does not depend on the policy.
+    const torch::Tensor target_a = b.actions.clamp(-kBcActionClip, kBcActionClip);
+    const torch::Tensor target_u = torch::atanh(target_a);
+    const torch::Tensor z = (target_u - mean) / std;
+    const double w = options_.bc_weight / batch;
+    grad_u.add_(z / std, -w);
+    const torch::Tensor clamped = (raw_log_std < opt.log_std_min).logical_or_(raw_log_std > opt.log_std_max);
+    grad_log_std.add_((1.0 - z.square()).masked_fill_(clamped, 0.0), w);
+    out.bc = -GaussianPolicyImpl::squashed_log_prob(target_u, target_a, mean, log_std).mean().item<double>();
+  }
   mean_pass_.backward(grad_u);
   log_std_pass_.backward(grad_log_std);
   policy_opt_->step();

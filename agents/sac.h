@@ -27,6 +27,13 @@ struct SacOptions {
   double alpha_lr = 3e-4;
   std::vector<int64_t> q_hidden = {256, 256};
   double initial_alpha = 1.0;
+  // Weight of a behaviour-cloning term on the stored actions in the actor's loss, bc_weight E[-log pi(a|s)]
+  // over the batch's (s, a) (0: SAC as published). Why: with a hybrid controller the stored actions are
+  // the planner's choices, not the policy's draws; SAC's actor only follows its critic towards them, and
+  // where the planner is better than the policy the policy falls behind the actions it is trained on
+  // (measured on the cart-pole: docs/RESULTS.md). The term distils the executed actions into the policy,
+  // as planners with a learned proposal distribution do. Targets are clipped to +-kBcActionClip.
+  double bc_weight = 0.0;
   // Entropy target; NaN means -action_dim (the usual heuristic).
   double target_entropy = std::numeric_limits<double>::quiet_NaN();
   // Seed of SAC's own generator (the policy samples of its updates), so that its updates draw the same
@@ -39,7 +46,12 @@ struct SacLosses {
   double actor = 0;    // E[alpha log pi - min Q]
   double alpha = 0;    // temperature after the update
   double entropy = 0;  // -E[log pi] of the batch's fresh actions
+  double bc = 0;       // -E[log pi(a|s)] of the batch's stored actions (computed only with bc_weight > 0)
 };
+
+// The behaviour-cloning term's targets: stored actions clipped to this, so that a planner's action at the
+// bound asks for tanh(u) = 0.999 (u = 3.8) rather than u = atanh(1 - 1e-6) = 7.25.
+inline constexpr double kBcActionClip = 0.999;
 
 class Sac : public Learner {
  public:
@@ -56,6 +68,7 @@ class Sac : public Learner {
   // The critics (their .grad()s hold the last update's critic gradient): for tests and analysis.
   TwinQNetwork& critics() { return critics_; }
   double alpha() const;
+  double bc_weight() const { return options_.bc_weight; }
 
   // Everything: policy, critics, targets, temperature, optimizers.
   void save(CheckpointWriter& writer) const;

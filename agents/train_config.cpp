@@ -138,6 +138,11 @@ Config make_train_config() {
       .add_double("sac.alpha_lr", 0.0, "Adam learning rate of the entropy temperature (0: sac.lr)", 0.0, 1.0)
       .add_int_list("sac.q_hidden", {256, 256}, "critic hidden layer widths", 1, 100000)
       .add_double("sac.initial_alpha", 1.0, "initial entropy temperature", 1e-8, 1e4)
+      .add_double(
+          "sac.bc_weight", 0.0,
+          "weight of a behaviour-cloning term -log pi(a|s) on the stored (executed) actions in SAC's actor "
+          "loss: with a hybrid the policy also learns the planner's choices (0: SAC as published)",
+          0.0, 1000.0)
       .add_int("planner.horizon", 5, "planning horizon H (agent steps)", 1, 1000)
       .add_int("planner.samples", 20, "rollouts K of the stochastic planners", 1, 100000)
       .add_double("planner.lambda", 0.1, "temperature lambda of the stochastic planners", 1e-9, 1e12)

@@ -59,13 +59,16 @@ double relative_difference(const torch::Tensor& a, const torch::Tensor& b) {
 
 // The update's hand-written gradients against autograd on the losses they differentiate: the critics'
 // from the same initial networks and noise, the policy's after the same critic step. With `normalized` the
-// policy normalises its inputs (the hand-written actor pass then runs on the normalised states).
-void expect_hand_written_gradients_match_autograd(bool normalized) {
+// policy normalises its inputs (the hand-written actor pass then runs on the normalised states). With
+// `bc_weight` the actor's loss also has the behaviour-cloning term on the batch's actions, two of which are
+// at the bounds (their targets clipped to +-kBcActionClip).
+void expect_hand_written_gradients_match_autograd(bool normalized, double bc_weight = 0.0) {
   const int n = 3, m = 2, B = 32;
   SacOptions o;
   o.q_hidden = {20, 14};
   o.seed = 5;
   o.initial_alpha = 0.7;
+  o.bc_weight = bc_weight;
   auto make = [&] {
     torch::manual_seed(11);
     GaussianPolicyOptions po{n, m, {16, 12}, Activation::kSin};
@@ -81,6 +84,10 @@ void expect_hand_written_gradients_match_autograd(bool normalized) {
   Batch b;
   b.states = torch::randn({B, n});
   b.actions = torch::rand({B, m}) * 1.8 - 0.9;
+  if (bc_weight > 0) {
+    b.actions[0][0] = 1.0;
+    b.actions[1][1] = -1.0;
+  }
   b.rewards = torch::randn({B, 1});
   b.next_states = torch::randn({B, n});
   b.next_actions = torch::rand({B, m}) * 1.8 - 0.9;
@@ -111,8 +118,14 @@ void expect_hand_written_gradients_match_autograd(bool normalized) {
       critic_params[i].copy_(written[i]);
   }
   PolicySample fresh = ref->policy()->rsample(b.states, gen);
-  const torch::Tensor actor_loss =
-      (alpha * fresh.log_prob - ref->critics()->min_q(b.states, fresh.action)).mean();
+  torch::Tensor actor_loss = (alpha * fresh.log_prob - ref->critics()->min_q(b.states, fresh.action)).mean();
+  torch::Tensor bc_loss;
+  if (bc_weight > 0) {
+    auto [mean, log_std] = ref->policy()->forward(b.states);
+    const torch::Tensor target = b.actions.clamp(-kBcActionClip, kBcActionClip);
+    bc_loss = -GaussianPolicyImpl::squashed_log_prob(torch::atanh(target), target, mean, log_std).mean();
+    actor_loss = actor_loss + bc_weight * bc_loss;
+  }
   const auto policy_params = ref->policy()->parameters();
   const auto policy_grads = torch::autograd::grad({actor_loss}, policy_params, {}, false, false, true);
   const auto written_policy = sac->policy()->parameters();
@@ -121,7 +134,11 @@ void expect_hand_written_gradients_match_autograd(bool normalized) {
     EXPECT_LT(relative_difference(written_policy[i].grad(), policy_grads[i]), 1e-4)
         << ref->policy()->named_parameters().keys()[i];
   }
-  EXPECT_NEAR(losses.actor, actor_loss.item<double>(), 1e-5 * std::abs(losses.actor) + 1e-6);
+  const double reported = losses.actor + (bc_weight > 0 ? bc_weight * losses.bc : 0.0);
+  EXPECT_NEAR(reported, actor_loss.item<double>(), 1e-5 * std::abs(reported) + 1e-6);
+  if (bc_weight > 0) {
+    EXPECT_NEAR(losses.bc, bc_loss.item<double>(), 1e-5 * std::abs(losses.bc) + 1e-6);
+  }
   EXPECT_NEAR(losses.entropy, -fresh.log_prob.mean().item<double>(), 1e-5 * std::abs(losses.entropy) + 1e-6);
 }
 
@@ -131,6 +148,39 @@ TEST(Sac, HandWrittenGradientsMatchAutograd) {
 
 TEST(Sac, HandWrittenGradientsMatchAutogradWithNormalisedPolicyInputs) {
   expect_hand_written_gradients_match_autograd(true);
+}
+
+TEST(Sac, BehaviourCloningTermOnTheStoredActionsMatchesAutograd) {
+  expect_hand_written_gradients_match_autograd(false, 0.5);
+  expect_hand_written_gradients_match_autograd(true, 2.0);
+}
+
+// The term pulls the policy's mean towards the stored actions: with it the mean moves towards a constant
+// stored action that the critic does not favour; without it, not.
+TEST(Sac, BehaviourCloningTermMovesThePolicyTowardsTheStoredActions) {
+  const int n = 2, m = 1, B = 64;
+  auto final_mean = [&](double bc_weight) {
+    torch::manual_seed(3);
+    GaussianPolicy policy(GaussianPolicyOptions{n, m, {32}, Activation::kRelu});
+    SacOptions o;
+    o.q_hidden = {32, 32};
+    o.q_lr = o.policy_lr = o.alpha_lr = 3e-3;
+    o.bc_weight = bc_weight;
+    Sac sac(policy, n, m, o);
+    ReplayBuffer rb(B * 4, n, m, 1);
+    torch::manual_seed(4);
+    const torch::Tensor s = torch::rand({B * 4, n}) * 2 - 1;
+    for (int i = 0; i < B * 4; ++i) {
+      // Every stored action is -0.6 with reward 0: the critic learns no preference, the term has one.
+      const std::vector<double> si = {s[i][0].item<double>(), s[i][1].item<double>()}, a = {-0.6};
+      rb.add(si.data(), a.data(), 0.0, si.data(), a.data(), true);
+    }
+    for (int i = 0; i < 300; ++i)
+      sac.update(rb.sample(B));
+    return policy->mean_action(s).mean().item<double>();
+  };
+  EXPECT_NEAR(final_mean(1.0), -0.6, 0.1);
+  EXPECT_GT(std::abs(final_mean(0.0) + 0.6), 0.3);
 }
 
 TEST(Sac, CheckpointRoundTripContinuesIdentically) {
