@@ -38,6 +38,9 @@ class Learner {
   virtual NamedLosses train(const Batch& batch) = 0;
   // The batches it takes: single transitions (1) or sequences of this many consecutive ones (Batch).
   virtual int64_t sequence_steps() const { return 1; }
+  // Its batches hold this many times train.batch_size transitions (or sequences), among which it chooses
+  // what it trains on (1: it trains on all of them).
+  virtual int64_t batch_multiple() const { return 1; }
   // Starts its optimizer afresh (moments forgotten, parameters kept). The imitation loop calls it before an
   // iteration's updates where the config asks (imitation.restart_model_optimizer); no-op by default.
   virtual void restart_optimizer() {}

@@ -144,6 +144,7 @@ std::unique_ptr<Learner> make_model_learner(LearnerContext& context) {
   mo.reward_weight = c.get_double("model.reward_weight");
   mo.weight_decay = c.get_double("model.weight_decay");
   mo.rollout_steps = c.get_int("model.rollout_steps");
+  mo.hard_mining = c.get_int("model.hard_mining");
   return std::make_unique<ModelLearner>(m.dynamics, m.reward, mo, m.ensemble);
 }
 

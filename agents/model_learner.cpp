@@ -1,5 +1,7 @@
 #include "agents/model_learner.h"
 
+#include <cmath>
+
 #include <torch/torch.h>
 
 #include "hlt/core/checkpoint.h"
@@ -21,6 +23,10 @@ ModelLearner::ModelLearner(DynamicsModel dynamics, RewardModel reward, const Mod
         "a reward model of the next state (model.reward_input next_state) is fitted by regression: "
         "model.reward_gamma must be 0, got {}",
         options_.reward_gamma);
+  check(options_.hard_mining >= 1, "model.hard_mining must be >= 1, got {}", options_.hard_mining);
+  check(options_.hard_mining == 1 || options_.rollout_steps == 1,
+        "model.hard_mining {} chooses among single transitions: it needs model.rollout_steps 1, got {}",
+        options_.hard_mining, options_.rollout_steps);
   std::vector<torch::Tensor> params = dynamics_->parameters();
   for (auto& p : reward_->parameters())
     params.push_back(p);
@@ -36,9 +42,58 @@ ModelLearner::ModelLearner(DynamicsModel dynamics, RewardModel reward, const Mod
         decayed_.push_back(w);
 }
 
-ModelLosses ModelLearner::update(const Batch& b) {
-  check(b.steps == options_.rollout_steps, "the model learner takes sequences of {} transitions, got {}",
-        options_.rollout_steps, b.steps);
+namespace {
+
+// The rows of `b` at `rows` (an index tensor), contiguous.
+Batch select_rows(const Batch& b, const torch::Tensor& rows) {
+  Batch out;
+  out.states = b.states.index_select(0, rows);
+  out.actions = b.actions.index_select(0, rows);
+  out.rewards = b.rewards.index_select(0, rows);
+  out.next_states = b.next_states.index_select(0, rows);
+  out.next_actions = b.next_actions.index_select(0, rows);
+  out.dones = b.dones.index_select(0, rows);
+  return out;
+}
+
+}  // namespace
+
+ModelLosses ModelLearner::update(const Batch& candidates) {
+  check(candidates.steps == options_.rollout_steps,
+        "the model learner takes sequences of {} transitions, got {}", options_.rollout_steps,
+        candidates.steps);
+  if (options_.hard_mining > 1) return update_mined(candidates);
+  return update_on(candidates, candidates);
+}
+
+ModelLosses ModelLearner::update_mined(const Batch& candidates) {
+  const int64_t rows = candidates.states.size(0);
+  check(rows % options_.hard_mining == 0, "model.hard_mining {}: a batch of {} rows is not a multiple of it",
+        options_.hard_mining, rows);
+  const int64_t batch = rows / options_.hard_mining;
+  torch::Tensor hardest;
+  double uniform_nll = 0;
+  {
+    c10::InferenceMode guard;
+    // Per row sum_j z_j^2 with z = (s' - f(s, a)) / sigma: the rows' NLL up to the same constant.
+    const torch::Tensor z =
+        (candidates.next_states - dynamics_->forward(candidates.states, candidates.actions)) *
+        torch::exp(-dynamics_->log_std());
+    const torch::Tensor err = z.square().sum(1);
+    // The logged loss is the uniform rows' NLL before the step, as an unmined learner logs it.
+    const double n = static_cast<double>(z.size(1));
+    uniform_nll = err.narrow(0, 0, batch).mean().item<double>() / (2.0 * n) +
+                  dynamics_->log_std().mean().item<double>() + 0.5 * std::log(2.0 * M_PI);
+    // The worst-predicted rows, in their drawn order (topk's order among equal errors is not specified).
+    hardest = std::get<0>(std::get<1>(torch::topk(err, batch)).sort());
+  }
+  const Batch uniform = select_rows(candidates, torch::arange(batch, torch::kLong));
+  ModelLosses losses = update_on(select_rows(candidates, hardest), uniform);
+  losses.dynamics = uniform_nll;
+  return losses;
+}
+
+ModelLosses ModelLearner::update_on(const Batch& b, const Batch& reward_batch) {
   ModelLosses losses;
   const int64_t batch = b.states.size(0) / b.steps;
   if (b.steps > 1) {
@@ -61,11 +116,12 @@ ModelLosses ModelLearner::update(const Batch& b) {
   add_weight_decay(decayed_, options_.weight_decay);
   // The reward model trains on each sequence's first transition, at the one-step cost: a uniform sample
   // of the transitions that start a sequence (all but the last K - 1 of each episode).
-  auto first = [&](const torch::Tensor& t) { return b.steps == 1 ? t : t.narrow(0, 0, batch); };
+  const Batch& r = reward_batch;
+  auto first = [&](const torch::Tensor& t) { return r.steps == 1 ? t : t.narrow(0, 0, batch); };
   // r(s', a) regresses on the reached state; with gamma 0 the TD target's next terms do not count.
-  const torch::Tensor& reward_state = reward_->options().reads_next_state ? b.next_states : b.states;
-  losses.reward = reward_->td_loss_with_gradient(first(reward_state), first(b.actions), first(b.rewards),
-                                                 first(b.next_states), first(b.next_actions), first(b.dones),
+  const torch::Tensor& reward_state = reward_->options().reads_next_state ? r.next_states : r.states;
+  losses.reward = reward_->td_loss_with_gradient(first(reward_state), first(r.actions), first(r.rewards),
+                                                 first(r.next_states), first(r.next_actions), first(r.dones),
                                                  options_.reward_gamma, options_.reward_weight);
   optimizer_->step();
   // The domain grows with the data the dynamics model is fitted to (for planner.clamp_to_data).

@@ -117,6 +117,12 @@ Config make_train_config() {
                "steps of the dynamics loss: 1, the one-step likelihood (the paper's); K > 1, the mean "
                "likelihood of K open-loop predictions along sequences of K consecutive transitions",
                1, 1000)
+      .add_int(
+          "model.hard_mining", 1,
+          "dynamics model: each update draws this many times train.batch_size transitions and fits the "
+          "dynamics to the train.batch_size of them it predicts worst (online hard-example mining; the "
+          "reward model keeps a uniform batch; 1: uniform batches, the paper's; needs model.rollout_steps 1)",
+          1, 64)
       .add_int("model.ensemble", 1,
                "dynamics models trained side by side from their own initial weights on the same batches "
                "(1: the paper's single model); the stochastic planners predict with their mean and can "

@@ -299,7 +299,8 @@ struct Trainer::Impl {
     std::vector<std::vector<Batch>> batches(learners.size());
     for (size_t i = 0; i < learners.size(); ++i)
       for (int64_t u = 0; u < learners[i].updates; ++u)
-        batches[i].push_back(learners[i].data->sample(batch_size, learners[i].learner->sequence_steps()));
+        batches[i].push_back(learners[i].data->sample(batch_size * learners[i].learner->batch_multiple(),
+                                                      learners[i].learner->sequence_steps()));
     auto train = [&](size_t i) {
       ActiveLearner& l = learners[i];
       for (const Batch& b : batches[i]) {

@@ -241,7 +241,8 @@ int run(int argc, char** argv) {
       config.get_string("model.reward_input"), plain_reward ? "" : "; none with model.reward_gamma > 0");
   ModelScore on_test;
   for (int64_t u = 1; u <= updates; ++u) {
-    const NamedLosses losses = learner->train(buffer.sample(batch_size, learner->sequence_steps()));
+    const NamedLosses losses =
+        learner->train(buffer.sample(batch_size * learner->batch_multiple(), learner->sequence_steps()));
     if (u % report_every == 0 || u == updates) {
       const ModelScore on_train = train_check.score(*models.dynamics, *env);
       on_test = test_check.score(*models.dynamics, *env);

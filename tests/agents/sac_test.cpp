@@ -331,6 +331,80 @@ TEST(ModelLearner, WeightDecayAddsTheL2GradientToTheDynamicsWeightsOnly) {
     EXPECT_TRUE(torch::equal(p.value().grad(), ra[p.key()].grad())) << p.key();
 }
 
+// With model.hard_mining c the learner takes c times the batch: the dynamics model steps exactly as a plain
+// learner given the rows it predicted worst before the step (chosen here by hand), the reward model exactly as
+// one given the first (uniform) rows, and the logged dynamics loss is the uniform rows' NLL before the step.
+// It refuses sequences.
+TEST(ModelLearner, HardMiningFitsTheDynamicsToTheWorstPredictedRows) {
+  const int n = 2, m = 1, B = 16, c = 3;
+  auto make = [&](int64_t mining, DynamicsModel* dyn, RewardModel* rew) {
+    torch::manual_seed(9);
+    *dyn = DynamicsModel(DynamicsModelOptions{n, m, 16, Activation::kSin});
+    *rew = RewardModel(RewardModelOptions{n, m, 16});
+    ModelLearnerOptions o;
+    o.hard_mining = mining;
+    return std::make_unique<ModelLearner>(*dyn, *rew, o);
+  };
+  DynamicsModel dyn_a(nullptr), dyn_b(nullptr), dyn_c(nullptr);
+  RewardModel rew_a(nullptr), rew_b(nullptr), rew_c(nullptr);
+  auto mined = make(c, &dyn_a, &rew_a);
+  auto on_hard = make(1, &dyn_b, &rew_b);
+  auto on_uniform = make(1, &dyn_c, &rew_c);
+  EXPECT_EQ(mined->batch_multiple(), c);
+  EXPECT_EQ(on_hard->batch_multiple(), 1);
+  ReplayBuffer rb(B * c, n, m, 0);
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int i = 0; i < B * c; ++i) {
+    // A kink at s0 = 0.5 that a fresh model predicts badly on one side only.
+    double s[2] = {u(rng), u(rng)}, a[1] = {u(rng)};
+    double s2[2] = {s[0] > 0.5 ? -s[0] : s[0] + 0.1 * a[0], s[1]};
+    rb.add(s, a, s[1], s2, a, false);
+  }
+  const Batch all = rb.all();
+  torch::Tensor hard;
+  double uniform_nll = 0;
+  {
+    torch::NoGradGuard g;
+    const torch::Tensor z = (all.next_states - dyn_a->forward(all.states, all.actions)) / dyn_a->log_std().exp();
+    const torch::Tensor err = z.square().sum(1);
+    hard = std::get<0>(std::get<1>(err.sort(0, /*descending=*/true)).narrow(0, 0, B).sort());
+    uniform_nll = 0.5 * z.narrow(0, 0, B).square().mean().item<double>() +
+                  dyn_a->log_std().mean().item<double>() + 0.5 * std::log(2.0 * M_PI);
+    // The chosen rows are not the uniform ones: the test can tell them apart.
+    ASSERT_FALSE(torch::equal(hard, torch::arange(B, torch::kLong)));
+  }
+  auto rows = [&](const torch::Tensor& idx) {
+    Batch b;
+    b.states = all.states.index_select(0, idx);
+    b.actions = all.actions.index_select(0, idx);
+    b.rewards = all.rewards.index_select(0, idx);
+    b.next_states = all.next_states.index_select(0, idx);
+    b.next_actions = all.next_actions.index_select(0, idx);
+    b.dones = all.dones.index_select(0, idx);
+    return b;
+  };
+  const ModelLosses l = mined->update(all);
+  on_hard->update(rows(hard));
+  on_uniform->update(rows(torch::arange(B, torch::kLong)));
+  EXPECT_NEAR(l.dynamics, uniform_nll, 1e-5 * std::abs(uniform_nll));
+  const auto pa = dyn_a->named_parameters(), pb = dyn_b->named_parameters();
+  for (const auto& p : pa)
+    EXPECT_TRUE(torch::allclose(p.value(), pb[p.key()], 1e-6, 1e-7)) << "dynamics " << p.key();
+  const auto ra = rew_a->named_parameters(), rc = rew_c->named_parameters();
+  for (const auto& p : ra)
+    EXPECT_TRUE(torch::allclose(p.value(), rc[p.key()], 1e-6, 1e-7)) << "reward " << p.key();
+  DynamicsModel d(nullptr);
+  RewardModel r(nullptr);
+  ModelLearnerOptions o;
+  o.hard_mining = 2;
+  o.rollout_steps = 3;
+  torch::manual_seed(9);
+  EXPECT_THROW(ModelLearner(DynamicsModel(DynamicsModelOptions{n, m, 8, Activation::kSin}),
+                            RewardModel(RewardModelOptions{n, m, 8}), o),
+               Error);
+}
+
 // With model.rollout_steps K the learner takes sequences: the dynamics model gets the open-loop loss's
 // gradient, the reward model exactly the gradient it gets from the sequences' first transitions alone (so
 // its parameters after one Adam step are those of a one-step learner given those transitions), and a batch
