@@ -295,6 +295,13 @@ register_simple(T, "values", "train.ensemble_deterministic",
 register_simple(T, "values", "train.disagreement_penalty_single_model",
                 ["--env", "pendulum", "--method", "hybrid-stochastic", "planner.disagreement_penalty=1"],
                 ["model.ensemble > 1"])
+register_simple(T, "values", "train.hard_mining_with_sequences",
+                ["--env", "pendulum", "--method", "hybrid-stochastic", "model.hard_mining=2",
+                 "model.rollout_steps=3"],
+                ["model.hard_mining 2", "model.rollout_steps 1"])
+register_simple(T, "values", "train.sac_bc_weight_negative",
+                ["--env", "pendulum", "--method", "sac", "sac.bc_weight=-1"],
+                ["sac.bc_weight"])
 register_simple(T, "values", "train.rollout_steps_longer_than_episodes",
                 lambda c: ["--env", "pendulum", "--method", "mppi", "--steps", "300", "train.update_after=250",
                            "model.rollout_steps=300", "--no-progress", "--out", tmp(c, "rollout")],
