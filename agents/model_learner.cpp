@@ -42,22 +42,6 @@ ModelLearner::ModelLearner(DynamicsModel dynamics, RewardModel reward, const Mod
         decayed_.push_back(w);
 }
 
-namespace {
-
-// The rows of `b` at `rows` (an index tensor), contiguous.
-Batch select_rows(const Batch& b, const torch::Tensor& rows) {
-  Batch out;
-  out.states = b.states.index_select(0, rows);
-  out.actions = b.actions.index_select(0, rows);
-  out.rewards = b.rewards.index_select(0, rows);
-  out.next_states = b.next_states.index_select(0, rows);
-  out.next_actions = b.next_actions.index_select(0, rows);
-  out.dones = b.dones.index_select(0, rows);
-  return out;
-}
-
-}  // namespace
-
 ModelLosses ModelLearner::update(const Batch& candidates) {
   check(candidates.steps == options_.rollout_steps,
         "the model learner takes sequences of {} transitions, got {}", options_.rollout_steps,

@@ -152,6 +152,17 @@ Batch ReplayBuffer::gather(const std::vector<int64_t>& rows, int64_t steps) cons
           steps};
 }
 
+Batch select_rows(const Batch& b, const at::Tensor& rows) {
+  check(b.steps == 1, "select_rows takes a batch of single transitions, got sequences of {}", b.steps);
+  return {b.states.index_select(0, rows),
+          b.actions.index_select(0, rows),
+          b.rewards.index_select(0, rows),
+          b.next_states.index_select(0, rows),
+          b.next_actions.index_select(0, rows),
+          b.dones.index_select(0, rows),
+          1};
+}
+
 Batch ReplayBuffer::all() const {
   torch::Tensor idx = (torch::arange(size_, torch::kInt64) + (size_ == capacity_ ? next_ : 0)) % capacity_;
   return {states_.index_select(0, idx),

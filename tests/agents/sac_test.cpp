@@ -285,18 +285,26 @@ TEST(ModelLearner, ARewardModelOfTheNextStateRegressesOnTheReachedState) {
               0.05);
 }
 
+// A model learner with `options` on fresh 16-wide models of n states and m actions, their initial weights
+// drawn after torch::manual_seed(seed): learners made with the same seed start from identical networks.
+std::unique_ptr<ModelLearner> seeded_model_learner(uint64_t seed, int n, int m, Activation activation,
+                                                   const ModelLearnerOptions& options, DynamicsModel* dyn,
+                                                   RewardModel* rew) {
+  torch::manual_seed(seed);
+  *dyn = DynamicsModel(DynamicsModelOptions{n, m, 16, activation});
+  *rew = RewardModel(RewardModelOptions{n, m, 16});
+  return std::make_unique<ModelLearner>(*dyn, *rew, options);
+}
+
 // The decay adds weight_decay * W to the likelihood's gradient of each weight matrix, and nothing to the
 // biases, the log-std or the reward model: two learners from identical networks, one batch, compared.
 TEST(ModelLearner, WeightDecayAddsTheL2GradientToTheDynamicsWeightsOnly) {
   const int n = 3, m = 2;
   const double wd = 0.01;
   auto make = [&](double decay, DynamicsModel* dyn, RewardModel* rew) {
-    torch::manual_seed(7);
-    *dyn = DynamicsModel(DynamicsModelOptions{n, m, 16, Activation::kRelu});
-    *rew = RewardModel(RewardModelOptions{n, m, 16});
     ModelLearnerOptions o;
     o.weight_decay = decay;
-    return std::make_unique<ModelLearner>(*dyn, *rew, o);
+    return seeded_model_learner(7, n, m, Activation::kRelu, o, dyn, rew);
   };
   DynamicsModel dyn_a(nullptr), dyn_b(nullptr);
   RewardModel rew_a(nullptr), rew_b(nullptr);
@@ -332,18 +340,15 @@ TEST(ModelLearner, WeightDecayAddsTheL2GradientToTheDynamicsWeightsOnly) {
 }
 
 // With model.hard_mining c the learner takes c times the batch: the dynamics model steps exactly as a plain
-// learner given the rows it predicted worst before the step (chosen here by hand), the reward model exactly as
-// one given the first (uniform) rows, and the logged dynamics loss is the uniform rows' NLL before the step.
-// It refuses sequences.
+// learner given the rows it predicted worst before the step (chosen here by hand), the reward model exactly
+// as one given the first (uniform) rows, and the logged dynamics loss is the uniform rows' NLL before the
+// step. It refuses sequences.
 TEST(ModelLearner, HardMiningFitsTheDynamicsToTheWorstPredictedRows) {
   const int n = 2, m = 1, B = 16, c = 3;
   auto make = [&](int64_t mining, DynamicsModel* dyn, RewardModel* rew) {
-    torch::manual_seed(9);
-    *dyn = DynamicsModel(DynamicsModelOptions{n, m, 16, Activation::kSin});
-    *rew = RewardModel(RewardModelOptions{n, m, 16});
     ModelLearnerOptions o;
     o.hard_mining = mining;
-    return std::make_unique<ModelLearner>(*dyn, *rew, o);
+    return seeded_model_learner(9, n, m, Activation::kSin, o, dyn, rew);
   };
   DynamicsModel dyn_a(nullptr), dyn_b(nullptr), dyn_c(nullptr);
   RewardModel rew_a(nullptr), rew_b(nullptr), rew_c(nullptr);
@@ -366,7 +371,8 @@ TEST(ModelLearner, HardMiningFitsTheDynamicsToTheWorstPredictedRows) {
   double uniform_nll = 0;
   {
     torch::NoGradGuard g;
-    const torch::Tensor z = (all.next_states - dyn_a->forward(all.states, all.actions)) / dyn_a->log_std().exp();
+    const torch::Tensor z =
+        (all.next_states - dyn_a->forward(all.states, all.actions)) / dyn_a->log_std().exp();
     const torch::Tensor err = z.square().sum(1);
     hard = std::get<0>(std::get<1>(err.sort(0, /*descending=*/true)).narrow(0, 0, B).sort());
     uniform_nll = 0.5 * z.narrow(0, 0, B).square().mean().item<double>() +
@@ -374,19 +380,9 @@ TEST(ModelLearner, HardMiningFitsTheDynamicsToTheWorstPredictedRows) {
     // The chosen rows are not the uniform ones: the test can tell them apart.
     ASSERT_FALSE(torch::equal(hard, torch::arange(B, torch::kLong)));
   }
-  auto rows = [&](const torch::Tensor& idx) {
-    Batch b;
-    b.states = all.states.index_select(0, idx);
-    b.actions = all.actions.index_select(0, idx);
-    b.rewards = all.rewards.index_select(0, idx);
-    b.next_states = all.next_states.index_select(0, idx);
-    b.next_actions = all.next_actions.index_select(0, idx);
-    b.dones = all.dones.index_select(0, idx);
-    return b;
-  };
   const ModelLosses l = mined->update(all);
-  on_hard->update(rows(hard));
-  on_uniform->update(rows(torch::arange(B, torch::kLong)));
+  on_hard->update(select_rows(all, hard));
+  on_uniform->update(select_rows(all, torch::arange(B, torch::kLong)));
   EXPECT_NEAR(l.dynamics, uniform_nll, 1e-5 * std::abs(uniform_nll));
   const auto pa = dyn_a->named_parameters(), pb = dyn_b->named_parameters();
   for (const auto& p : pa)
@@ -394,15 +390,12 @@ TEST(ModelLearner, HardMiningFitsTheDynamicsToTheWorstPredictedRows) {
   const auto ra = rew_a->named_parameters(), rc = rew_c->named_parameters();
   for (const auto& p : ra)
     EXPECT_TRUE(torch::allclose(p.value(), rc[p.key()], 1e-6, 1e-7)) << "reward " << p.key();
-  DynamicsModel d(nullptr);
-  RewardModel r(nullptr);
   ModelLearnerOptions o;
   o.hard_mining = 2;
   o.rollout_steps = 3;
-  torch::manual_seed(9);
-  EXPECT_THROW(ModelLearner(DynamicsModel(DynamicsModelOptions{n, m, 8, Activation::kSin}),
-                            RewardModel(RewardModelOptions{n, m, 8}), o),
-               Error);
+  DynamicsModel d(nullptr);
+  RewardModel r(nullptr);
+  EXPECT_THROW(seeded_model_learner(9, n, m, Activation::kSin, o, &d, &r), Error);
 }
 
 // With model.rollout_steps K the learner takes sequences: the dynamics model gets the open-loop loss's
@@ -412,12 +405,9 @@ TEST(ModelLearner, HardMiningFitsTheDynamicsToTheWorstPredictedRows) {
 TEST(ModelLearner, SequencesTrainTheDynamicsOpenLoopAndTheRewardOnTheirFirstSteps) {
   const int n = 2, m = 1, K = 3;
   auto make = [&](int64_t steps, DynamicsModel* dyn, RewardModel* rew) {
-    torch::manual_seed(8);
-    *dyn = DynamicsModel(DynamicsModelOptions{n, m, 16, Activation::kSin});
-    *rew = RewardModel(RewardModelOptions{n, m, 16});
     ModelLearnerOptions o;
     o.rollout_steps = steps;
-    return std::make_unique<ModelLearner>(*dyn, *rew, o);
+    return seeded_model_learner(8, n, m, Activation::kSin, o, dyn, rew);
   };
   DynamicsModel dyn_1(nullptr), dyn_k(nullptr), dyn_ref(nullptr);
   RewardModel rew_1(nullptr), rew_k(nullptr), rew_ref(nullptr);

@@ -25,6 +25,9 @@ struct Batch {
   int64_t steps = 1;
 };
 
+// The transitions of a batch of single transitions (steps 1) at `rows` ([R] int64 indices), in that order.
+Batch select_rows(const Batch& batch, const at::Tensor& rows);
+
 class ReplayBuffer {
  public:
   ReplayBuffer(int64_t capacity, int64_t state_dim, int64_t action_dim, uint64_t seed);
