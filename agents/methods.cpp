@@ -108,7 +108,8 @@ std::unique_ptr<Controller> make_stochastic_hybrid(const LearnedModels& m, const
   }
   TerminalValue value;
   if (o.terminal_value_weight > 0) {
-    require(!m.critics.is_empty(), "stochastic_hybrid with planner.terminal_value > 0", "SAC critic");
+    require(!m.critics.is_empty(), "stochastic_hybrid with planner.terminal_value > 0",
+            "trained SAC critic (a run's checkpoint.pt holds it, its final.pt does not)");
     // The critic at the policy's own (mean) action: the value of following the policy after the horizon.
     value = [policy = m.policy, critics = m.critics](const at::Tensor& s) mutable {
       const at::Tensor x = s.to(critics->weights[0].scalar_type());

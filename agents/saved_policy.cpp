@@ -148,6 +148,10 @@ SavedController load_saved_controller(const std::string& path, const std::string
   if (r.has("torch_rng")) {
     for (auto& learner : learners)
       learner->load_training_state(r);
+  } else {
+    // The critics were built but not trained: leave them out, so that a controller that needs them (the
+    // terminal value) says so instead of acting on freshly initialised ones.
+    models.critics = nullptr;
   }
   auto evaluation_mode = [](auto& module) {
     if (!module.is_empty()) module->eval();

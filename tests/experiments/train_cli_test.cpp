@@ -320,6 +320,17 @@ TEST(RolloutCli, ActsWithARunsPlannerOnItsModelsOrOnTheSimulator) {
       r.output.find("predicted return vs simulated:                     mean 1.000 median 1.000 over 4"),
       std::string::npos)
       << r.output;
+  // The terminal value uses the run's trained critics, which checkpoint.pt holds: the same seed repeats
+  // itself; final.pt holds none, and the terminal value is refused there rather than computed by untrained
+  // critics.
+  r = run(rollout + policy + " --controller stochastic_hybrid planner.terminal_value=1");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(run(rollout + policy + " --controller stochastic_hybrid planner.terminal_value=1").output,
+            r.output);
+  r = run(rollout + " --policy checkpoint:" + dir +
+          "/final.pt --controller stochastic_hybrid planner.terminal_value=1");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("its final.pt does not"), std::string::npos) << r.output;
   // key=value overrides change the run's config before the planner is built: three samples plan otherwise.
   const std::string three =
       run(rollout + policy + " --controller stochastic_hybrid planner.samples=3").output;
