@@ -32,7 +32,8 @@ struct ModelLearnerOptions {
   // one-step NLL before the step); the reward model keeps the uniform batch_size (the first rows). 1: uniform
   // batches, the paper's. Why: on the cart-pole the transitions at the end of the rail are 3 % of the data,
   // and there the model's one-step error is 6-7 times its error elsewhere, with the planner's failed catches
-  // at that end (docs/RESULTS.md); uniform batches give them 3 % of the fit. Needs rollout_steps 1.
+  // at that end (docs/RESULTS.md); uniform batches give them 3 % of the fit. Measured there, it does not
+  // help (lower returns on both tuning seed sets), so it stays off. Needs rollout_steps 1.
   int64_t hard_mining = 1;
 };
 
