@@ -301,15 +301,12 @@ std::unique_ptr<ModelLearner> seeded_model_learner(uint64_t seed, int n, int m, 
 TEST(ModelLearner, WeightDecayAddsTheL2GradientToTheDynamicsWeightsOnly) {
   const int n = 3, m = 2;
   const double wd = 0.01;
-  auto make = [&](double decay, DynamicsModel* dyn, RewardModel* rew) {
-    ModelLearnerOptions o;
-    o.weight_decay = decay;
-    return seeded_model_learner(7, n, m, Activation::kRelu, o, dyn, rew);
-  };
+  ModelLearnerOptions decaying;
+  decaying.weight_decay = wd;
   DynamicsModel dyn_a(nullptr), dyn_b(nullptr);
   RewardModel rew_a(nullptr), rew_b(nullptr);
-  auto plain = make(0.0, &dyn_a, &rew_a);
-  auto decayed = make(wd, &dyn_b, &rew_b);
+  auto plain = seeded_model_learner(7, n, m, Activation::kRelu, {}, &dyn_a, &rew_a);
+  auto decayed = seeded_model_learner(7, n, m, Activation::kRelu, decaying, &dyn_b, &rew_b);
   ReplayBuffer rb(64, n, m, 0);
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> u(-1, 1);
@@ -345,16 +342,13 @@ TEST(ModelLearner, WeightDecayAddsTheL2GradientToTheDynamicsWeightsOnly) {
 // step. It refuses sequences.
 TEST(ModelLearner, HardMiningFitsTheDynamicsToTheWorstPredictedRows) {
   const int n = 2, m = 1, B = 16, c = 3;
-  auto make = [&](int64_t mining, DynamicsModel* dyn, RewardModel* rew) {
-    ModelLearnerOptions o;
-    o.hard_mining = mining;
-    return seeded_model_learner(9, n, m, Activation::kSin, o, dyn, rew);
-  };
+  ModelLearnerOptions mining;
+  mining.hard_mining = c;
   DynamicsModel dyn_a(nullptr), dyn_b(nullptr), dyn_c(nullptr);
   RewardModel rew_a(nullptr), rew_b(nullptr), rew_c(nullptr);
-  auto mined = make(c, &dyn_a, &rew_a);
-  auto on_hard = make(1, &dyn_b, &rew_b);
-  auto on_uniform = make(1, &dyn_c, &rew_c);
+  auto mined = seeded_model_learner(9, n, m, Activation::kSin, mining, &dyn_a, &rew_a);
+  auto on_hard = seeded_model_learner(9, n, m, Activation::kSin, {}, &dyn_b, &rew_b);
+  auto on_uniform = seeded_model_learner(9, n, m, Activation::kSin, {}, &dyn_c, &rew_c);
   EXPECT_EQ(mined->batch_multiple(), c);
   EXPECT_EQ(on_hard->batch_multiple(), 1);
   ReplayBuffer rb(B * c, n, m, 0);
@@ -404,16 +398,14 @@ TEST(ModelLearner, HardMiningFitsTheDynamicsToTheWorstPredictedRows) {
 // of the wrong length is refused.
 TEST(ModelLearner, SequencesTrainTheDynamicsOpenLoopAndTheRewardOnTheirFirstSteps) {
   const int n = 2, m = 1, K = 3;
-  auto make = [&](int64_t steps, DynamicsModel* dyn, RewardModel* rew) {
-    ModelLearnerOptions o;
-    o.rollout_steps = steps;
-    return seeded_model_learner(8, n, m, Activation::kSin, o, dyn, rew);
-  };
+  ModelLearnerOptions sequences;
+  sequences.rollout_steps = K;
   DynamicsModel dyn_1(nullptr), dyn_k(nullptr), dyn_ref(nullptr);
   RewardModel rew_1(nullptr), rew_k(nullptr), rew_ref(nullptr);
-  auto one = make(1, &dyn_1, &rew_1);
-  auto seq = make(K, &dyn_k, &rew_k);
-  make(K, &dyn_ref, &rew_ref);  // untrained copies, for the expected loss
+  auto one = seeded_model_learner(8, n, m, Activation::kSin, {}, &dyn_1, &rew_1);
+  auto seq = seeded_model_learner(8, n, m, Activation::kSin, sequences, &dyn_k, &rew_k);
+  // Untrained copies, for the expected loss.
+  seeded_model_learner(8, n, m, Activation::kSin, sequences, &dyn_ref, &rew_ref);
   EXPECT_EQ(one->sequence_steps(), 1);
   EXPECT_EQ(seq->sequence_steps(), K);
   // Two episodes of s' = 0.9 s + 0.1 a.
