@@ -232,8 +232,11 @@ void load_env_defaults(Config& config, const std::string& config_dir, const std:
   load_if_present(config, std::filesystem::path(config_dir) / (env + ".yaml"));
 }
 
-void load_method_overlay(Config& config, const std::string& config_dir, const std::string& method) {
-  load_if_present(config, std::filesystem::path(config_dir) / "methods" / (method + ".yaml"));
+void load_method_overlay(Config& config, const std::string& config_dir, const std::string& method,
+                         const std::string& env) {
+  const auto methods = std::filesystem::path(config_dir) / "methods";
+  load_if_present(config, methods / (method + ".yaml"));
+  load_if_present(config, methods / method / (env + ".yaml"));
 }
 
 }  // namespace hlt

@@ -10,10 +10,12 @@ namespace hlt {
 
 Config make_train_config();
 
-// The shipped per-environment defaults (<config_dir>/<env>.yaml) and per-method overlay
-// (<config_dir>/methods/<method>.yaml), each loaded into `config` if the file exists. hlt_train applies them
-// in this order, after the declared defaults and before --config and the flags.
+// The shipped per-environment defaults (<config_dir>/<env>.yaml), the per-method overlay
+// (<config_dir>/methods/<method>.yaml) and a method's settings for one environment
+// (<config_dir>/methods/<method>/<env>.yaml), each loaded into `config` if the file exists. hlt_train
+// applies them in this order, after the declared defaults and before --config and the flags.
 void load_env_defaults(Config& config, const std::string& config_dir, const std::string& env);
-void load_method_overlay(Config& config, const std::string& config_dir, const std::string& method);
+void load_method_overlay(Config& config, const std::string& config_dir, const std::string& method,
+                         const std::string& env);
 
 }  // namespace hlt

@@ -202,7 +202,7 @@ int run(int argc, char** argv) {
   load_env_defaults(config, HLT_CONFIG_DIR, env_name);
   if (!method.empty()) {
     config.set("method", method, "--method");
-    load_method_overlay(config, HLT_CONFIG_DIR, method);
+    load_method_overlay(config, HLT_CONFIG_DIR, method, env_name);
   }
   if (!config_file.empty()) config.load_file(config_file);
   for (const std::string& o : overrides)

@@ -6,8 +6,9 @@
 //   hlt_train --resume runs/x [--steps N]
 //
 // Settings are resolved in order: declared defaults, experiments/configs/<env>.yaml, the method's overlay
-// experiments/configs/methods/<method>.yaml (if there is one), --config FILE, the flags above, then
-// key=value overrides. `hlt_train --list` prints every key.
+// experiments/configs/methods/<method>.yaml and its settings for this environment
+// experiments/configs/methods/<method>/<env>.yaml (each if there is one), --config FILE, the flags above,
+// then key=value overrides. `hlt_train --list` prints every key.
 #include <cmath>
 #include <filesystem>
 #include <iostream>
@@ -136,7 +137,7 @@ int run(int argc, char** argv) {
     method_name = key_in_file(config_file, "method").value_or("");
   if (method_name.empty()) method_name = config.get_string("method");
   config.set("method", method_name, "--method");  // validates the name before its overlay is looked up
-  load_method_overlay(config, HLT_CONFIG_DIR, method_name);
+  load_method_overlay(config, HLT_CONFIG_DIR, method_name, env_name);
   if (!config_file.empty()) config.load_file(config_file);
   // The flags come after the file (the documented order), --env included.
   if (!env.empty()) config.set("env", env, "--env");

@@ -184,7 +184,7 @@ void RobotTaskPlanner(benchmark::State& st, const std::string& env_name, const s
   torch::manual_seed(0);
   Config config = make_train_config();
   load_env_defaults(config, HLT_CONFIG_DIR, env_name);
-  load_method_overlay(config, HLT_CONFIG_DIR, method_name);
+  load_method_overlay(config, HLT_CONFIG_DIR, method_name, env_name);
   std::unique_ptr<Env> env = make_env(env_name);
   const MethodSpec& method = find_method(method_name);
   LearnedModels models;

@@ -526,6 +526,47 @@ TEST(TrainCli, ParallelUpdatesGiveTheSameNumbers) {
   EXPECT_EQ(read_file(one + "/config.yaml").rfind("# blas: ", 0), 0u);
 }
 
+// A method's settings for one environment (experiments/configs/methods/<method>/<env>.yaml) apply to that
+// pair only, after the environment's defaults and before the flags: the stochastic hybrid's cart-pole file
+// sets a 10-step horizon, the environment's file (which NN-MPPI keeps) 5.
+TEST(TrainCli, MethodSettingsForOneEnvironmentApplyToThatPairOnly) {
+  const std::string args =
+      " --env cartpole_swingup --seed 0 --steps 2 train.update_after=1000 eval.every=1000 eval.episodes=1 "
+      "eval.components=false --no-progress";
+  const auto resolved = [&](const std::string& method, const std::string& extra) {
+    const std::string dir = fresh_dir("overlay_" + method);
+    const Result r = run(kTrain + args + " --method " + method + extra + " --out " + dir);
+    EXPECT_EQ(r.code, 0) << r.output;
+    std::ifstream in(dir + "/config.yaml");
+    std::map<std::string, std::string> keys;  // "section.key" -> value, from the run's resolved config
+    std::string section;
+    for (std::string line; std::getline(in, line);) {
+      if (line.empty() || line[0] == '#') continue;
+      const size_t colon = line.find(':');
+      if (colon == std::string::npos) continue;
+      if (line[0] != ' ') {
+        section = line.substr(0, colon);
+        continue;
+      }
+      const size_t start = line.find_first_not_of(' ');
+      keys[section + "." + line.substr(start, colon - start)] = line.substr(colon + 2);
+    }
+    return keys;
+  };
+  auto hybrid = resolved("hybrid-stochastic", "");
+  EXPECT_EQ(hybrid["planner.horizon"], "10");
+  EXPECT_EQ(hybrid["model.rollout_steps"], "5");
+  EXPECT_EQ(hybrid["model.reward_gamma"], "0.0");
+  EXPECT_EQ(hybrid["planner.terminal_value"], "0.2");
+  EXPECT_EQ(hybrid["planner.samples"], "20");  // from cartpole_swingup.yaml, which the overlay leaves
+  auto mppi = resolved("mppi", "");
+  EXPECT_EQ(mppi["planner.horizon"], "5");
+  EXPECT_EQ(mppi["model.rollout_steps"], "1");
+  auto flagged = resolved("hybrid-stochastic", " planner.horizon=7");
+  EXPECT_EQ(flagged["planner.horizon"], "7");
+  EXPECT_EQ(flagged["model.rollout_steps"], "5");
+}
+
 // eval.trace writes each evaluation of each component step by step; the rewards of a trace add up to the
 // return the log reports for it, and tracing changes none of the run's numbers.
 TEST(TrainCli, EvalTraceRecordsEveryEvaluationStepByStep) {
