@@ -96,10 +96,14 @@ std::unique_ptr<Controller> make_stochastic_hybrid(const LearnedModels& m, const
       m.policy, c.get_bool("planner.density_tanh_correction"), c.get_bool("planner.mean_rollout"));
   StochasticHybridOptions o = stochastic_options(c);
   const int64_t plan_samples = c.get_int("planner.plan_samples");
+  check(plan_samples > 0 || !c.get_bool("planner.plan_noise_from_policy"),
+        "planner.plan_noise_from_policy=true scales the plan samples' noise, but planner.plan_samples is 0");
   if (plan_samples > 0) {
     // planner.samples rollouts from the policy plus plan_samples around the warm-started plan.
-    auto noise =
-        std::make_shared<FilteredNoiseSampler>(c.get_double("mppi.sigma"), c.get_double("mppi.filter"));
+    auto noise = std::make_shared<FilteredNoiseSampler>(
+        c.get_double("mppi.sigma"), c.get_double("mppi.filter"),
+        c.get_bool("planner.plan_noise_from_policy") ? std::optional<GaussianPolicy>(m.policy)
+                                                     : std::nullopt);
     sampler = std::make_shared<MixtureSampler>(sampler, noise, plan_samples, m.policy,
                                                c.get_bool("planner.density_tanh_correction"));
     o.samples += plan_samples;

@@ -158,6 +158,10 @@ Config make_train_config() {
           "(mppi.sigma, mppi.filter) next to the planner.samples policy rollouts, every sample weighted by "
           "exp(J / lambda) (0: policy rollouts only, the paper's Alg. 2)",
           0, 100000)
+      .add_bool("planner.plan_noise_from_policy", false,
+                "hybrid-stochastic with plan samples: each plan sample's noise std is min(mppi.sigma, the "
+                "policy's std exp(log_std(s)) at that sample's state), per step and action dimension, so "
+                "the plan is searched no wider than the policy is unsure (false: mppi.sigma throughout)")
       .add_bool(
           "planner.plan_prior", false,
           "with plan samples: weight every sample by exp(J / lambda) pi(v | s), the policy's density at "

@@ -70,9 +70,11 @@ at::Tensor PolicySampler::log_density(const at::Tensor& actions) {
   return out;
 }
 
-FilteredNoiseSampler::FilteredNoiseSampler(double sigma, double filter) : sigma_(sigma), filter_(filter) {
+FilteredNoiseSampler::FilteredNoiseSampler(double sigma, double filter, std::optional<GaussianPolicy> scale)
+    : sigma_(sigma), filter_(filter) {
   check(sigma > 0, "MPPI noise sigma must be > 0, got {}", sigma);
   check(filter >= 0 && filter < 1, "MPPI filter must be in [0, 1), got {}", filter);
+  if (scale) scale_.emplace(std::move(*scale));
 }
 
 void FilteredNoiseSampler::begin(int64_t samples, const at::Tensor& plan) {
@@ -84,16 +86,29 @@ void FilteredNoiseSampler::begin(int64_t samples, const at::Tensor& plan) {
     using T = decltype(tag);
     row_map<T>(eta_).setZero();
   });
+  if (scale_) {
+    scale_->prepare(samples);
+    if (!sigmas_.defined() || sigmas_.sizes() != z_.sizes() || sigmas_.scalar_type() != z_.scalar_type())
+      sigmas_ = torch::empty_like(z_);
+  }
 }
 
 void FilteredNoiseSampler::sample(int64_t t, const at::Tensor& states, const at::Tensor& plan_t,
                                   at::Tensor& actions) {
+  if (scale_) scale_->forward(states);
   dispatch_floating(actions, [&](auto tag) {
     using T = decltype(tag);
     const int64_t K = actions.size(0), m = actions.size(1);
     auto eta = row_map<T>(eta_);
     Eigen::Map<const Eigen::Matrix<T, 1, Eigen::Dynamic>> a(plan_t.data_ptr<T>(), m);
-    eta = T(filter_) * eta + T((1.0 - filter_) * sigma_) * block<T>(z_, t * K * m, K, m);
+    const auto z = block<T>(z_, t * K * m, K, m).array();
+    if (scale_) {
+      auto sig = block<T>(sigmas_, t * K * m, K, m);
+      sig = row_map<T>(scale_->log_std()).array().exp().min(T(sigma_)).matrix();
+      eta = (T(filter_) * eta.array() + T(1.0 - filter_) * sig.array() * z).matrix();
+    } else {
+      eta = (T(filter_) * eta.array() + T((1.0 - filter_) * sigma_) * z).matrix();
+    }
     row_map<T>(actions) = (eta.rowwise() + a).array().max(T(-1)).min(T(1)).matrix();
   });
 }
@@ -104,12 +119,15 @@ at::Tensor FilteredNoiseSampler::log_density(const at::Tensor& actions) {
   dispatch_floating(actions, [&](auto tag) {
     using T = decltype(tag);
     for (int64_t t = 0; t < H; ++t) {
-      block<T>(out, t * K, 1, K) =
-          (T(-0.5) * block<T>(z_, t * K * m, K, m).array().square() - T(std::log(sigma_) + kHalfLog2Pi))
-              .rowwise()
-              .sum()
-              .matrix()
-              .transpose();
+      const auto z2 = block<T>(z_, t * K * m, K, m).array().square();
+      if (scale_) {
+        const auto sig = block<T>(sigmas_, t * K * m, K, m).array();
+        block<T>(out, t * K, 1, K) =
+            (T(-0.5) * z2 - sig.log() - T(kHalfLog2Pi)).rowwise().sum().matrix().transpose();
+      } else {
+        block<T>(out, t * K, 1, K) =
+            (T(-0.5) * z2 - T(std::log(sigma_) + kHalfLog2Pi)).rowwise().sum().matrix().transpose();
+      }
     }
   });
   return out;

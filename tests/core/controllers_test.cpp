@@ -703,6 +703,37 @@ GaussianPolicy constant_policy(double mean_raw, double log_std) {
   return policy;
 }
 
+// With a scale policy the plan samples' noise std is min(sigma, exp(log_std(s))) of the policy: a confident
+// policy (std 0.018) narrows it, a broad one (std 1) leaves sigma; the log-density uses each step's std.
+TEST(StochasticHybrid, PlanNoiseFromThePolicyIsNoWiderThanThePolicy) {
+  const int64_t H = 3, K = 4000;
+  const double sigma = 0.3;
+  const auto plan = torch::zeros({H, 1}, torch::kFloat32);
+  const auto states = torch::zeros({K, 1}, torch::kFloat32);
+  auto noise_std = [&](std::optional<GaussianPolicy> scale, double expected_sigma) {
+    FilteredNoiseSampler sampler(sigma, 0.0, scale);
+    torch::manual_seed(3);
+    sampler.begin(K, plan);
+    auto a = torch::empty({K, 1}, torch::kFloat32);
+    std::vector<torch::Tensor> steps;
+    for (int64_t t = 0; t < H; ++t) {
+      sampler.sample(t, states, plan[t], a);
+      steps.push_back(a.clone());
+    }
+    const auto V = torch::stack(steps);  // [H, K, 1]; filter 0 and a zero plan: v = clip(sigma_t z)
+    // z is known (the same seed): the density of each step's noise under N(0, expected_sigma^2).
+    torch::manual_seed(3);
+    const auto z = torch::randn({H, K, 1}, torch::kFloat32);
+    EXPECT_TRUE(torch::allclose(V, (expected_sigma * z).clamp(-1, 1), 1e-5, 1e-6));
+    const auto by_hand = (-0.5 * z.square() - std::log(expected_sigma) - 0.5 * std::log(2 * M_PI)).sum(-1);
+    EXPECT_TRUE(torch::allclose(sampler.log_density(V), by_hand, 1e-5, 1e-6));
+    return V.std().item<double>();
+  };
+  EXPECT_NEAR(noise_std(std::nullopt, sigma), sigma, 0.01);
+  EXPECT_NEAR(noise_std(constant_policy(-1.0, -4.0), std::exp(-4.0)), std::exp(-4.0), 0.001);
+  EXPECT_NEAR(noise_std(constant_policy(-1.0, 0.0), sigma), sigma, 0.01);
+}
+
 TEST(StochasticHybrid, PlanSamplesLetTheModelsLeaveAPoorPolicy) {
   torch::manual_seed(9);
   Models md = known_answer_models(0.5);

@@ -299,6 +299,10 @@ register_simple(T, "values", "train.hard_mining_with_sequences",
                 ["--env", "pendulum", "--method", "hybrid-stochastic", "model.hard_mining=2",
                  "model.rollout_steps=3"],
                 ["model.hard_mining 2", "model.rollout_steps 1"])
+register_simple(T, "values", "train.plan_noise_from_policy_without_plan_samples",
+                ["--env", "pendulum", "--method", "hybrid-stochastic", "planner.plan_noise_from_policy=true",
+                 "planner.plan_samples=0"],
+                ["planner.plan_noise_from_policy", "planner.plan_samples is 0"])
 register_simple(T, "values", "train.sac_bc_weight_negative",
                 ["--env", "pendulum", "--method", "sac", "sac.bc_weight=-1"],
                 ["sac.bc_weight"])

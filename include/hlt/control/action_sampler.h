@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 
 #include <ATen/core/Tensor.h>
 
@@ -63,16 +64,22 @@ class PolicySampler : public ActionSampler {
 
 // NN-MPPI's noise: z_t ~ N(0, 1), eta_t = filter * eta_{t-1} + (1 - filter) * sigma * z_t,
 // v = clip(a_t + eta_t, -1, 1); log-density of sigma z_t under N(0, sigma^2).
+// Given a policy (`scale`), sigma is per sample, step and action dimension: min(sigma, exp(log_std(s))) of
+// the policy at the sample's own rollout state, so the samples search around the plan no wider than the
+// policy is unsure there (a hybrid's plan samples: wide while SAC's policy is broad, narrow once it is
+// confident, where a learned model's errors off the data would otherwise decide the action).
 class FilteredNoiseSampler : public ActionSampler {
  public:
-  FilteredNoiseSampler(double sigma, double filter);
+  FilteredNoiseSampler(double sigma, double filter, std::optional<GaussianPolicy> scale = std::nullopt);
   void begin(int64_t samples, const at::Tensor& plan) override;
   void sample(int64_t t, const at::Tensor& states, const at::Tensor& plan_t, at::Tensor& actions) override;
   at::Tensor log_density(const at::Tensor& actions) override;
 
  private:
   double sigma_, filter_;
+  std::optional<PolicyForward> scale_;
   at::Tensor z_, eta_;
+  at::Tensor sigmas_;  // [H, K, m] with a scale policy: each step's sigma
 };
 
 // Two proposals side by side: the first K - second_samples rollouts draw from `first` (the policy), the last
