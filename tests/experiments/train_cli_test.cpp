@@ -558,10 +558,12 @@ TEST(TrainCli, MethodSettingsForOneEnvironmentApplyToThatPairOnly) {
   EXPECT_EQ(hybrid["model.rollout_steps"], "5");
   EXPECT_EQ(hybrid["model.reward_gamma"], "0.0");
   EXPECT_EQ(hybrid["planner.terminal_value"], "0.2");
+  EXPECT_EQ(hybrid["train.model_updates"], "10");
   EXPECT_EQ(hybrid["planner.samples"], "20");  // from cartpole_swingup.yaml, which the overlay leaves
   auto mppi = resolved("mppi", "");
   EXPECT_EQ(mppi["planner.horizon"], "5");
   EXPECT_EQ(mppi["model.rollout_steps"], "1");
+  EXPECT_EQ(mppi["train.model_updates"], "5");
   auto flagged = resolved("hybrid-stochastic", " planner.horizon=7");
   EXPECT_EQ(flagged["planner.horizon"], "7");
   EXPECT_EQ(flagged["model.rollout_steps"], "5");
