@@ -19,6 +19,7 @@
 #include <sstream>
 
 #include "agents/saved_policy.h"
+#include "agents/train_config.h"
 #include "envs/registry.h"
 #include "experiments/cli_support.h"
 #include "hlt/util/files.h"
@@ -533,40 +534,29 @@ TEST(TrainCli, MethodSettingsForOneEnvironmentApplyToThatPairOnly) {
   const std::string args =
       " --env cartpole_swingup --seed 0 --steps 2 train.update_after=1000 eval.every=1000 eval.episodes=1 "
       "eval.components=false --no-progress";
+  // The run's resolved config.yaml, read back the way --resume reads it.
   const auto resolved = [&](const std::string& method, const std::string& extra) {
     const std::string dir = fresh_dir("overlay_" + method);
     const Result r = run(kTrain + args + " --method " + method + extra + " --out " + dir);
     EXPECT_EQ(r.code, 0) << r.output;
-    std::ifstream in(dir + "/config.yaml");
-    std::map<std::string, std::string> keys;  // "section.key" -> value, from the run's resolved config
-    std::string section;
-    for (std::string line; std::getline(in, line);) {
-      if (line.empty() || line[0] == '#') continue;
-      const size_t colon = line.find(':');
-      if (colon == std::string::npos) continue;
-      if (line[0] != ' ') {
-        section = line.substr(0, colon);
-        continue;
-      }
-      const size_t start = line.find_first_not_of(' ');
-      keys[section + "." + line.substr(start, colon - start)] = line.substr(colon + 2);
-    }
-    return keys;
+    Config c = make_train_config();
+    c.load_file(dir + "/config.yaml");
+    return c;
   };
-  auto hybrid = resolved("hybrid-stochastic", "");
-  EXPECT_EQ(hybrid["planner.horizon"], "10");
-  EXPECT_EQ(hybrid["model.rollout_steps"], "5");
-  EXPECT_EQ(hybrid["model.reward_gamma"], "0.0");
-  EXPECT_EQ(hybrid["planner.terminal_value"], "0.2");
-  EXPECT_EQ(hybrid["train.model_updates"], "10");
-  EXPECT_EQ(hybrid["planner.samples"], "20");  // from cartpole_swingup.yaml, which the overlay leaves
-  auto mppi = resolved("mppi", "");
-  EXPECT_EQ(mppi["planner.horizon"], "5");
-  EXPECT_EQ(mppi["model.rollout_steps"], "1");
-  EXPECT_EQ(mppi["train.model_updates"], "5");
-  auto flagged = resolved("hybrid-stochastic", " planner.horizon=7");
-  EXPECT_EQ(flagged["planner.horizon"], "7");
-  EXPECT_EQ(flagged["model.rollout_steps"], "5");
+  const Config hybrid = resolved("hybrid-stochastic", "");
+  EXPECT_EQ(hybrid.get_int("planner.horizon"), 10);
+  EXPECT_EQ(hybrid.get_int("model.rollout_steps"), 5);
+  EXPECT_EQ(hybrid.get_double("model.reward_gamma"), 0.0);
+  EXPECT_EQ(hybrid.get_double("planner.terminal_value"), 0.2);
+  EXPECT_EQ(hybrid.get_int("train.model_updates"), 10);
+  EXPECT_EQ(hybrid.get_int("planner.samples"), 20);  // from cartpole_swingup.yaml, which the overlay leaves
+  const Config mppi = resolved("mppi", "");
+  EXPECT_EQ(mppi.get_int("planner.horizon"), 5);
+  EXPECT_EQ(mppi.get_int("model.rollout_steps"), 1);
+  EXPECT_EQ(mppi.get_int("train.model_updates"), 5);
+  const Config flagged = resolved("hybrid-stochastic", " planner.horizon=7");
+  EXPECT_EQ(flagged.get_int("planner.horizon"), 7);
+  EXPECT_EQ(flagged.get_int("model.rollout_steps"), 5);
 }
 
 // eval.trace writes each evaluation of each component step by step; the rewards of a trace add up to the
