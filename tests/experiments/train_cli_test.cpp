@@ -549,11 +549,13 @@ TEST(TrainCli, MethodSettingsForOneEnvironmentApplyToThatPairOnly) {
   EXPECT_EQ(hybrid.get_double("model.reward_gamma"), 0.0);
   EXPECT_EQ(hybrid.get_double("planner.terminal_value"), 0.2);
   EXPECT_EQ(hybrid.get_int("train.model_updates"), 10);
+  EXPECT_EQ(hybrid.get_int("model.ensemble"), 5);
   EXPECT_EQ(hybrid.get_int("planner.samples"), 20);  // from cartpole_swingup.yaml, which the overlay leaves
   const Config mppi = resolved("mppi", "");
   EXPECT_EQ(mppi.get_int("planner.horizon"), 5);
   EXPECT_EQ(mppi.get_int("model.rollout_steps"), 1);
   EXPECT_EQ(mppi.get_int("train.model_updates"), 5);
+  EXPECT_EQ(mppi.get_int("model.ensemble"), 1);
   const Config flagged = resolved("hybrid-stochastic", " planner.horizon=7");
   EXPECT_EQ(flagged.get_int("planner.horizon"), 7);
   EXPECT_EQ(flagged.get_int("model.rollout_steps"), 5);
